@@ -1,0 +1,107 @@
+//! The paper's eight simulation cases (Tables 3 and 4) and their published numbers.
+
+use crate::error::Result;
+use crate::scenario::Scenario;
+use crate::sim;
+use serde::Serialize;
+
+/// One of the paper's cases with its published figures.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct PaperCase {
+    /// Reference frequency (Hz): 2 or 10.
+    pub frequency_hz: f64,
+    /// gamma (ZNN) = k (ERL-SMC).
+    pub gain: f64,
+    /// `arbfnn_fdo_znn` or `erl_smc`.
+    pub controller: &'static str,
+    /// The paper's maximum tracking error (N).
+    pub paper_max_error_n: f64,
+    /// The paper's convergence time (s).
+    pub paper_convergence_s: f64,
+}
+
+/// Tables 3 and 4 of the paper.
+pub const PAPER_CASES: [PaperCase; 8] = [
+    PaperCase { frequency_hz: 2.0, gain: 100.0, controller: "arbfnn_fdo_znn", paper_max_error_n: 9.24, paper_convergence_s: 0.113 },
+    PaperCase { frequency_hz: 2.0, gain: 100.0, controller: "erl_smc", paper_max_error_n: 11.41, paper_convergence_s: 0.403 },
+    PaperCase { frequency_hz: 2.0, gain: 200.0, controller: "arbfnn_fdo_znn", paper_max_error_n: 4.62, paper_convergence_s: 0.047 },
+    PaperCase { frequency_hz: 2.0, gain: 200.0, controller: "erl_smc", paper_max_error_n: 7.58, paper_convergence_s: 0.385 },
+    PaperCase { frequency_hz: 10.0, gain: 200.0, controller: "arbfnn_fdo_znn", paper_max_error_n: 23.14, paper_convergence_s: 0.054 },
+    PaperCase { frequency_hz: 10.0, gain: 200.0, controller: "erl_smc", paper_max_error_n: 47.45, paper_convergence_s: 0.436 },
+    PaperCase { frequency_hz: 10.0, gain: 300.0, controller: "arbfnn_fdo_znn", paper_max_error_n: 15.4, paper_convergence_s: 0.037 },
+    PaperCase { frequency_hz: 10.0, gain: 300.0, controller: "erl_smc", paper_max_error_n: 33.58, paper_convergence_s: 0.389 },
+];
+
+/// Our result for one case next to the paper's.
+#[derive(Debug, Clone, Serialize)]
+pub struct CaseResult {
+    /// The case.
+    pub case: PaperCase,
+    /// Our maximum tracking error (N).
+    pub max_abs_force_error_n: f64,
+    /// (ours - paper)/paper, in percent.
+    pub max_error_diff_pct: f64,
+    /// Our convergence time (s), null if it never entered the band.
+    pub force_convergence_time_s: Option<f64>,
+    /// Band used (N).
+    pub force_convergence_band_n: f64,
+    /// Our RMS error (N).
+    pub rms_force_error_n: f64,
+}
+
+/// The `--set` overrides that turn `base` into one paper case.
+pub fn case_sets(c: &PaperCase) -> Vec<String> {
+    vec![
+        "reference.kind=\"sine\"".into(),
+        "reference.amplitude_n=200.0".into(),
+        format!("reference.frequency_hz={:?}", c.frequency_hz),
+        format!("controller.kind=\"{}\"", c.controller),
+        format!("controller.gamma={:?}", c.gain),
+        format!("controller.k={:?}", c.gain),
+    ]
+}
+
+/// Run the eight cases on top of `base` (which fixes plant, disturbances, solver...).
+pub fn run_cases(base: &Scenario, extra_sets: &[String]) -> Result<Vec<CaseResult>> {
+    use rayon::prelude::*;
+    PAPER_CASES
+        .par_iter()
+        .map(|c| {
+            let mut sets = case_sets(c);
+            sets.extend_from_slice(extra_sets);
+            let s = base.with_sets(&sets)?;
+            let out = sim::run(&s)?;
+            let m = &out.summary;
+            Ok(CaseResult {
+                case: *c,
+                max_abs_force_error_n: m.max_abs_force_error_n,
+                max_error_diff_pct: 100.0 * (m.max_abs_force_error_n - c.paper_max_error_n) / c.paper_max_error_n,
+                force_convergence_time_s: m.force_convergence_time_s,
+                force_convergence_band_n: m.force_convergence_band_n,
+                rms_force_error_n: m.rms_force_error_n,
+            })
+        })
+        .collect()
+}
+
+/// Render the comparison as a text table.
+pub fn table(results: &[CaseResult]) -> String {
+    let mut s = String::new();
+    s.push_str("case               controller       max err (N)  paper (N)   diff %   conv (s)  paper conv (s)  band (N)\n");
+    for r in results {
+        let c = &r.case;
+        s.push_str(&format!(
+            "{:>4} Hz, gain {:<4} {:<16} {:>11.3}  {:>9.2}  {:>+7.2}   {:>8}  {:>14.3}  {:>8.2}\n",
+            c.frequency_hz,
+            c.gain,
+            c.controller,
+            r.max_abs_force_error_n,
+            c.paper_max_error_n,
+            r.max_error_diff_pct,
+            r.force_convergence_time_s.map_or("never".to_string(), |t| format!("{t:.3}")),
+            c.paper_convergence_s,
+            r.force_convergence_band_n
+        ));
+    }
+    s
+}

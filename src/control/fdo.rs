@@ -1,0 +1,49 @@
+//! Fixed-time disturbance observer (paper Eq. 27-29).
+
+use serde::{Deserialize, Serialize};
+
+/// Observer parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObserverParams {
+    /// Gain L (1/s^... acts on Xi in N/s to give N/s^2; the paper uses 1). Default 1. > 0.
+    pub gain: f64,
+    /// Exponent r in (0, 1). Default 1/3.
+    pub exponent: f64,
+}
+
+impl Default for ObserverParams {
+    fn default() -> Self {
+        Self { gain: 1.0, exponent: 1.0 / 3.0 }
+    }
+}
+
+/// The observer's estimate D_hat = L*psi(Xi), with
+/// `psi(Xi) = Xi + sig(Xi)^r + sig(Xi)^(1/r) + sigmoid(Xi)`, `sig(x)^a = |x|^a*sgn(x)`,
+/// `sigmoid(x) = 2/(1+exp(-x)) - 1` (odd). Its state `z` lives in the controller.
+///
+/// Stiffness: `d psi/d Xi` grows like `3*Xi^2/r`... for r = 1/3 the cubic term dominates,
+/// so a large disturbance makes the observer stiff (see README: observer limits).
+#[derive(Debug, Clone)]
+pub struct Fdo {
+    p: ObserverParams,
+}
+
+impl Fdo {
+    /// An observer with the given parameters.
+    pub fn new(p: ObserverParams) -> Self {
+        Self { p }
+    }
+
+    /// psi(Xi).
+    pub fn psi(&self, xi: f64) -> f64 {
+        let r = self.p.exponent;
+        let a = xi.abs();
+        xi + a.powf(r).copysign(xi) + a.powf(1.0 / r).copysign(xi) + (2.0 / (1.0 + (-xi).exp()) - 1.0)
+    }
+
+    /// D_hat = L*psi(Xi) (N/s^2).
+    pub fn estimate(&self, xi: f64) -> f64 {
+        self.p.gain * self.psi(xi)
+    }
+}

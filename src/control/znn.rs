@@ -1,0 +1,90 @@
+//! ZNN force controller (paper Eq. 7-15), optionally with ARBFNN + FDO (paper Eq. 30).
+
+use super::{ControlOutput, Controller, Fdo, Measurement, NominalModel, RbfNetwork, RBF_NODES};
+use crate::reference::RefSample;
+
+/// ZNN with linear activation. With `compensation = Some(..)` it is ARBFNN-FDO-ZNN.
+///
+/// ```text
+/// e1 = x1 - x_d,  e2 = x2 - xd_dot + gamma*e1   (de_i/dt = -gamma*e_i)
+/// u  = tau/(n1*k_s) * [ -gamma^2*x1 + (n3 - 2*gamma)*x2 + gamma^2*x_d + 2*gamma*xd_dot
+///                       + xd_ddot + n2*xc_ddot + n1*x3/tau - comp ]
+/// comp = g_hat + D_hat  (0 for plain ZNN)
+/// ```
+/// With a perfect model the closed loop is `e1'' + 2*gamma*e1' + gamma^2*e1 = 0`.
+/// MODEL.md explains the sign of `comp` (the paper prints `+`).
+/// State (ARBFNN-FDO-ZNN only): `[z, W_1..W_7]`.
+pub struct Znn {
+    model: NominalModel,
+    gamma: f64,
+    compensation: Option<(RbfNetwork, Fdo)>,
+}
+
+impl Znn {
+    /// A ZNN controller with design parameter `gamma` (1/s).
+    pub fn new(model: NominalModel, gamma: f64, compensation: Option<(RbfNetwork, Fdo)>) -> Self {
+        Self { model, gamma, compensation }
+    }
+
+    /// The desired dx2/dt of the ZNN design: xd_ddot - 2*gamma*(x2 - xd_dot) - gamma^2*(x1 - x_d).
+    fn desired_accel(&self, r: &RefSample, y: &Measurement) -> f64 {
+        let g = self.gamma;
+        r.accel - 2.0 * g * (y.force_rate_n_per_s - r.rate) - g * g * (y.force_n - r.value)
+    }
+
+    fn rbf_input(r: &RefSample, y: &Measurement) -> [f64; 4] {
+        let e1 = y.force_n - r.value;
+        let e1_dot = y.force_rate_n_per_s - r.rate;
+        [y.force_n, y.force_rate_n_per_s, e1, e1_dot]
+    }
+}
+
+impl Controller for Znn {
+    fn kind(&self) -> &'static str {
+        if self.compensation.is_some() {
+            "arbfnn_fdo_znn"
+        } else {
+            "znn"
+        }
+    }
+
+    fn state_names(&self) -> Vec<String> {
+        if self.compensation.is_some() {
+            std::iter::once("observer_z".to_string()).chain((1..=RBF_NODES).map(|i| format!("rbf_weight_{i}"))).collect()
+        } else {
+            Vec::new()
+        }
+    }
+
+    fn init(&self, y: &Measurement, _r: &RefSample, s: &mut [f64]) {
+        if self.compensation.is_some() {
+            // Xi(0) = x2(0) - z(0) = 0: the observer starts from the first reading; W_hat(0) = 0.
+            s[0] = y.force_rate_n_per_s;
+            s[1..=RBF_NODES].fill(0.0);
+        }
+    }
+
+    fn output(&self, _t_s: f64, r: &RefSample, y: &Measurement, s: &[f64]) -> ControlOutput {
+        let (comp, g_hat) = match &self.compensation {
+            None => (0.0, 0.0),
+            Some((rbf, fdo)) => {
+                let h = rbf.activations(&Self::rbf_input(r, y));
+                let g_hat = rbf.output(&h, &s[1..=RBF_NODES]);
+                let xi = y.force_rate_n_per_s - s[0];
+                (g_hat + fdo.estimate(xi), g_hat)
+            }
+        };
+        let u = self.model.invert(self.desired_accel(r, y) - comp, y);
+        ControlOutput { valve_command: u, disturbance_estimate_n_per_s2: comp, rbf_output_n_per_s2: g_hat }
+    }
+
+    fn derivatives(&self, _t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]) {
+        if let Some((rbf, fdo)) = &self.compensation {
+            let xi = y.force_rate_n_per_s - s[0];
+            // dz/dt = [n1*dx3/dt - n3*x2 - n2*xc_ddot + g_hat] + L*psi(Xi)   (paper Eq. 27)
+            ds[0] = self.model.force_accel(u.valve_command, y) + u.rbf_output_n_per_s2 + fdo.estimate(xi);
+            let h = rbf.activations(&Self::rbf_input(r, y));
+            rbf.weight_rates(&h, xi, &mut ds[1..=RBF_NODES]);
+        }
+    }
+}

@@ -1,0 +1,79 @@
+//! Error types and the process exit codes they map to.
+
+use std::path::PathBuf;
+
+/// Exit code for a successful run.
+pub const EXIT_OK: i32 = 0;
+/// Exit code for an I/O or other runtime failure that is not the user's input.
+pub const EXIT_FAILURE: i32 = 1;
+/// Exit code for bad input: scenario file, URDF, gait CSV, or command-line arguments.
+pub const EXIT_BAD_INPUT: i32 = 2;
+/// Exit code for a simulation that went non-finite (diverged).
+pub const EXIT_SIM_FAILED: i32 = 3;
+/// Exit code for a run that completed but failed the scenario's pass/fail criteria.
+pub const EXIT_CRITERIA_FAILED: i32 = 4;
+
+/// Everything that can go wrong in exoleg.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// Bad user input; `source_name` is the file (or `--set`) it came from, `key` the dotted key.
+    #[error("{source_name}: {key}: {message}")]
+    Input {
+        /// File path or `--set` or `<embedded default>`.
+        source_name: String,
+        /// Dotted key or element name the problem is in (may be empty).
+        key: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file could not be read.
+    #[error("{}: cannot read: {message}", path.display())]
+    Read {
+        /// The path that failed.
+        path: PathBuf,
+        /// OS message.
+        message: String,
+    },
+    /// The simulation produced a non-finite value.
+    #[error("simulation diverged at t = {time_s:.6} s: state `{state}` became {value}")]
+    Diverged {
+        /// Simulated time at which it was detected (s).
+        time_s: f64,
+        /// Name of the state that went non-finite.
+        state: String,
+        /// The offending value.
+        value: f64,
+    },
+    /// Output could not be written.
+    #[error("{}: cannot write: {message}", path.display())]
+    Write {
+        /// The path that failed.
+        path: PathBuf,
+        /// OS or encoder message.
+        message: String,
+    },
+    /// The run completed but failed its criteria.
+    #[error("criteria failed: {0}")]
+    Criteria(String),
+}
+
+impl Error {
+    /// Shorthand for [`Error::Input`].
+    pub fn input(source_name: impl Into<String>, key: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Input { source_name: source_name.into(), key: key.into(), message: message.into() }
+    }
+
+    /// The process exit code for this error.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::Input { .. } | Error::Read { .. } => EXIT_BAD_INPUT,
+            Error::Diverged { .. } => EXIT_SIM_FAILED,
+            Error::Write { .. } => EXIT_FAILURE,
+            Error::Criteria(_) => EXIT_CRITERIA_FAILED,
+        }
+    }
+}
+
+/// Result alias used across the crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

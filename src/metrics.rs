@@ -1,0 +1,111 @@
+//! The metric definitions of MODEL.md section 6, defined once and used by the CLI, the
+//! comparison, sweeps and tests.
+
+use crate::scenario::{Scenario, ScenarioFile};
+use crate::sim::Record;
+use serde::Serialize;
+
+/// Largest absolute value (0 for an empty slice).
+pub fn max_abs(xs: &[f64]) -> f64 {
+    xs.iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+/// Root mean square (0 for an empty slice).
+pub fn rms(xs: &[f64]) -> f64 {
+    if xs.is_empty() {
+        return 0.0;
+    }
+    (xs.iter().map(|x| x * x).sum::<f64>() / xs.len() as f64).sqrt()
+}
+
+/// Convergence time: the earliest recorded time after which `|e| <= band` for the rest of
+/// the run. `None` if the last sample is outside the band (never converged).
+pub fn convergence_time(t_s: &[f64], e: &[f64], band: f64) -> Option<f64> {
+    match e.iter().rposition(|x| x.abs() > band) {
+        None => t_s.first().copied(),
+        Some(i) if i + 1 < t_s.len() => Some(t_s[i + 1]),
+        Some(_) => None,
+    }
+}
+
+/// Index of the first sample at or after `settle_s`.
+pub fn settle_index(t_s: &[f64], settle_s: f64) -> usize {
+    t_s.partition_point(|&t| t < settle_s - 1e-12)
+}
+
+/// Fraction of samples with |x| >= limit.
+pub fn fraction_at_limit(xs: &[f64], limit: f64) -> f64 {
+    if xs.is_empty() {
+        return 0.0;
+    }
+    xs.iter().filter(|x| x.abs() >= limit).count() as f64 / xs.len() as f64
+}
+
+/// The summary written to `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// max |F_L - F_d| over the run (N).
+    pub max_abs_force_error_n: f64,
+    /// Earliest t after which |F_L - F_d| stays within the band (s); null if never.
+    pub force_convergence_time_s: Option<f64>,
+    /// The band used for the convergence time (N).
+    pub force_convergence_band_n: f64,
+    /// RMS of F_L - F_d over the run (N).
+    pub rms_force_error_n: f64,
+    /// Settling window excluded from the two figures below (s).
+    pub settle_s: f64,
+    /// max |F_L - F_d| after the settling window (N).
+    pub max_abs_force_error_after_settle_n: f64,
+    /// RMS of F_L - F_d after the settling window (N).
+    pub rms_force_error_after_settle_n: f64,
+    /// max |u| (valve command).
+    pub max_abs_valve_command: f64,
+    /// max |F_L| (N).
+    pub peak_load_force_n: f64,
+    /// Number of fixed steps.
+    pub steps: usize,
+    /// Wall-clock time of the simulation loop (s).
+    pub wall_time_s: f64,
+    /// steps / wall_time_s.
+    pub steps_per_second: f64,
+    /// The resolved scenario: feed it back (`exoleg run summary.json`) to reproduce the run.
+    pub scenario: ScenarioFile,
+}
+
+/// Compute the summary of a finished run.
+pub fn summarise(s: &Scenario, r: &Record, wall_time_s: f64) -> Summary {
+    let band = s.convergence_band_n();
+    let settle = s.file.metrics.settle_s;
+    let i0 = settle_index(&r.t_s, settle);
+    let steps = r.t_s.len().saturating_sub(1);
+    Summary {
+        max_abs_force_error_n: max_abs(&r.force_error_n),
+        force_convergence_time_s: convergence_time(&r.t_s, &r.force_error_n, band),
+        force_convergence_band_n: band,
+        rms_force_error_n: rms(&r.force_error_n),
+        settle_s: settle,
+        max_abs_force_error_after_settle_n: max_abs(&r.force_error_n[i0..]),
+        rms_force_error_after_settle_n: rms(&r.force_error_n[i0..]),
+        max_abs_valve_command: max_abs(&r.valve_command),
+        peak_load_force_n: max_abs(&r.load_force_n),
+        steps,
+        wall_time_s,
+        steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
+        scenario: s.file.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn convergence_time_definition() {
+        let t = [0.0, 0.1, 0.2, 0.3, 0.4];
+        assert_eq!(convergence_time(&t, &[5.0, 3.0, 0.5, 2.5, 0.1], 1.0), Some(0.4));
+        assert_eq!(convergence_time(&t, &[0.0, 0.1, 0.5, 0.5, 0.1], 1.0), Some(0.0));
+        assert_eq!(convergence_time(&t, &[0.0, 0.1, 0.5, 0.5, 3.0], 1.0), None);
+        assert!((rms(&[3.0, -4.0]) - (12.5f64).sqrt()).abs() < 1e-15);
+        assert_eq!(settle_index(&t, 0.2), 2);
+    }
+}

@@ -1,0 +1,117 @@
+//! Plots with plotters' bitmap backend and an embedded font (no system fonts needed).
+
+use super::write_atomic;
+use crate::error::{Error, Result};
+use crate::sim::Record;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::Once;
+
+static FONT: Once = Once::new();
+
+/// Register the embedded DejaVu Sans font under the family name "sans-serif".
+fn ensure_font() {
+    FONT.call_once(|| {
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
+    });
+}
+
+/// One panel: several named series over a shared time axis.
+pub struct Panel<'a> {
+    /// Y-axis label with unit.
+    pub y_label: &'a str,
+    /// (legend, values, colour).
+    pub series: Vec<(&'a str, &'a [f64], RGBColor)>,
+}
+
+fn range(panel: &Panel) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (_, v, _) in &panel.series {
+        for x in v.iter() {
+            lo = lo.min(*x);
+            hi = hi.max(*x);
+        }
+    }
+    if !lo.is_finite() || !hi.is_finite() {
+        return (-1.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.05).max(1e-12 * hi.abs().max(1.0));
+    (lo - pad, hi + pad)
+}
+
+/// Draw stacked panels sharing the time axis into a PNG at `path` (atomic write).
+pub fn stacked_png(path: &Path, title: &str, t_s: &[f64], panels: &[Panel]) -> Result<()> {
+    ensure_font();
+    let (w, h) = (1200u32, 300 * panels.len() as u32 + 60);
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    let perr = |e: String| Error::Write { path: path.to_path_buf(), message: format!("plot: {e}") };
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| perr(e.to_string()))?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(|e| perr(e.to_string()))?;
+        let areas = root.split_evenly((panels.len(), 1));
+        let (t0, t1) = (t_s.first().copied().unwrap_or(0.0), t_s.last().copied().unwrap_or(1.0).max(1e-9));
+        for (area, p) in areas.iter().zip(panels) {
+            let (lo, hi) = range(p);
+            let mut chart = ChartBuilder::on(area)
+                .margin(8)
+                .x_label_area_size(36)
+                .y_label_area_size(80)
+                .build_cartesian_2d(t0..t1, lo..hi)
+                .map_err(|e| perr(e.to_string()))?;
+            chart
+                .configure_mesh()
+                .x_desc("time (s)")
+                .y_desc(p.y_label)
+                .label_style(("sans-serif", 14))
+                .draw()
+                .map_err(|e| perr(e.to_string()))?;
+            for (name, v, c) in &p.series {
+                let c = *c;
+                chart
+                    .draw_series(LineSeries::new(t_s.iter().copied().zip(v.iter().copied()), c.stroke_width(2)))
+                    .map_err(|e| perr(e.to_string()))?
+                    .label(*name)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .draw()
+                .map_err(|e| perr(e.to_string()))?;
+        }
+        root.present().map_err(|e| perr(e.to_string()))?;
+    }
+    let img = image_png(&buf, w, h).map_err(perr)?;
+    write_atomic(path, &img)
+}
+
+/// Encode an RGB buffer as PNG bytes (through plotters' bitmap encoder via a temp file is
+/// not atomic, so encode in memory with the `image` crate plotters already depends on).
+fn image_png(rgb: &[u8], w: u32, h: u32) -> std::result::Result<Vec<u8>, String> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(rgb, w, h, image::ColorType::Rgb8)
+        .map_err(|e| e.to_string())?;
+    Ok(out)
+}
+
+/// The paper's Figure 5 layout: reference vs load force, tracking error, control input.
+pub fn force_tracking_png(path: &Path, r: &Record, title: &str) -> Result<()> {
+    stacked_png(
+        path,
+        title,
+        &r.t_s,
+        &[
+            Panel {
+                y_label: "force (N)",
+                series: vec![("F_d desired", &r.ref_force_n, BLACK), ("F_L load", &r.load_force_n, BLUE)],
+            },
+            Panel { y_label: "error F_L - F_d (N)", series: vec![("tracking error", &r.force_error_n, RED)] },
+            Panel { y_label: "valve command u", series: vec![("u", &r.valve_command, RGBColor(0, 128, 0))] },
+        ],
+    )
+}

@@ -1,0 +1,59 @@
+//! Reference trajectories: what the controller is asked to track.
+//!
+//! Each reference gives its value and its first and second time derivatives analytically
+//! (the ZNN and ERL-SMC laws need `x_d`, `dx_d/dt`, `d^2x_d/dt^2`).
+
+use serde::Serialize;
+
+/// A reference value and its first two time derivatives at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct RefSample {
+    /// Value (N for a force reference, rad for an angle reference).
+    pub value: f64,
+    /// First time derivative (unit/s).
+    pub rate: f64,
+    /// Second time derivative (unit/s^2).
+    pub accel: f64,
+}
+
+/// `offset + amplitude*sin(2*pi*f*t + phase)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Sine {
+    /// Amplitude (unit of the reference).
+    pub amplitude: f64,
+    /// Frequency (Hz).
+    pub frequency_hz: f64,
+    /// Phase (rad).
+    pub phase_rad: f64,
+    /// Constant offset (unit of the reference).
+    pub offset: f64,
+}
+
+impl Sine {
+    /// Value and derivatives at `t_s`.
+    pub fn at(&self, t_s: f64) -> RefSample {
+        let w = std::f64::consts::TAU * self.frequency_hz;
+        let (s, c) = (w * t_s + self.phase_rad).sin_cos();
+        RefSample {
+            value: self.offset + self.amplitude * s,
+            rate: self.amplitude * w * c,
+            accel: -self.amplitude * w * w * s,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sine_derivatives_match_finite_differences() {
+        let s = Sine { amplitude: 200.0, frequency_hz: 2.0, phase_rad: 0.3, offset: 5.0 };
+        let (t, h) = (0.137, 1e-6);
+        let a = s.at(t);
+        let (p, m) = (s.at(t + h), s.at(t - h));
+        assert!(((p.value - m.value) / (2.0 * h) - a.rate).abs() < 1e-4 * a.rate.abs().max(1.0));
+        assert!(((p.rate - m.rate) / (2.0 * h) - a.accel).abs() < 1e-4 * a.accel.abs().max(1.0));
+        assert_eq!(s.at(0.0).rate, 200.0 * std::f64::consts::TAU * 2.0 * 0.3f64.cos());
+    }
+}

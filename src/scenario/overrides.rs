@@ -1,0 +1,65 @@
+//! Reading scenario text into a TOML table and applying `--set dotted.key=value`.
+
+use crate::error::{Error, Result};
+
+/// Parse TOML text; a syntax error names the file, line and column.
+pub(super) fn parse_toml(name: &str, text: &str) -> Result<toml::Table> {
+    text.parse::<toml::Table>().map_err(|e| {
+        let msg = e.message().to_string();
+        let loc = e.span().map(|s| {
+            let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
+            let col = s.start - text[..s.start.min(text.len())].rfind('\n').map_or(0, |i| i + 1) + 1;
+            format!("line {line}, column {col}")
+        });
+        Error::input(name, loc.unwrap_or_default(), format!("malformed TOML: {msg}"))
+    })
+}
+
+/// Parse a JSON scenario, or a `summary.json` (its `scenario` field is used).
+pub(super) fn parse_json(name: &str, text: &str) -> Result<toml::Table> {
+    let v: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| Error::input(name, "", format!("malformed JSON: {e}")))?;
+    let v = match v.get("scenario") {
+        Some(s) if v.get("max_abs_force_error_n").is_some() => s.clone(),
+        _ => v,
+    };
+    match toml::Value::try_from(v) {
+        Ok(toml::Value::Table(t)) => Ok(t),
+        Ok(_) => Err(Error::input(name, "", "a scenario must be a JSON object")),
+        Err(e) => Err(Error::input(name, "", format!("cannot use as scenario: {e}"))),
+    }
+}
+
+/// Apply one `dotted.key=value` override. The value is read as a TOML value
+/// (`1e-3`, `true`, `"text"`, `[1, 2]`); anything that is not valid TOML is taken as a string.
+pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
+    let (key, raw) = set
+        .split_once('=')
+        .ok_or_else(|| Error::input("--set", set, "expected key=value (e.g. controller.gamma=200)"))?;
+    let key = key.trim();
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err(Error::input("--set", key, "empty key segment"));
+    }
+    let raw = raw.trim();
+    let value = format!("v = {raw}")
+        .parse::<toml::Table>()
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(raw.to_string()));
+    let mut cur = table;
+    for (i, p) in parts.iter().enumerate() {
+        if i + 1 == parts.len() {
+            cur.insert(p.to_string(), value);
+            return Ok(());
+        }
+        let entry = cur.entry(p.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        cur = match entry {
+            toml::Value::Table(t) => t,
+            _ => {
+                return Err(Error::input("--set", key, format!("`{}` is not a table", parts[..=i].join("."))));
+            }
+        };
+    }
+    Ok(())
+}

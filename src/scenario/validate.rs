@@ -1,0 +1,163 @@
+//! Validation of a deserialised scenario: finiteness, signs, ranges, consistency.
+
+use super::ScenarioFile;
+use crate::disturbance::{Signal, Term};
+use crate::error::{Error, Result};
+use crate::human::HumanMode;
+use crate::plant::PlantKind;
+
+/// Find the first non-finite float anywhere in the scenario, with its dotted path.
+fn first_non_finite(v: &toml::Value, path: &mut Vec<String>) -> Option<(String, f64)> {
+    match v {
+        toml::Value::Float(f) if !f.is_finite() => Some((path.join("."), *f)),
+        toml::Value::Table(t) => t.iter().find_map(|(k, v)| {
+            path.push(k.clone());
+            let r = first_non_finite(v, path);
+            path.pop();
+            r
+        }),
+        toml::Value::Array(a) => a.iter().enumerate().find_map(|(i, v)| {
+            path.push(i.to_string());
+            let r = first_non_finite(v, path);
+            path.pop();
+            r
+        }),
+        _ => None,
+    }
+}
+
+struct Check<'a> {
+    src: &'a str,
+}
+
+impl Check<'_> {
+    fn positive(&self, key: &str, v: f64) -> Result<()> {
+        if v > 0.0 {
+            Ok(())
+        } else {
+            Err(Error::input(self.src, key, format!("must be > 0, got {v}")))
+        }
+    }
+    fn non_negative(&self, key: &str, v: f64) -> Result<()> {
+        if v >= 0.0 {
+            Ok(())
+        } else {
+            Err(Error::input(self.src, key, format!("must be >= 0, got {v}")))
+        }
+    }
+    fn fail(&self, key: &str, msg: impl Into<String>) -> Error {
+        Error::input(self.src, key, msg)
+    }
+}
+
+fn signal(c: &Check, key: &str, s: &Signal) -> Result<()> {
+    for (i, t) in s.0.iter().enumerate() {
+        match t {
+            Term::Random { hold_s, .. } => c.positive(&format!("{key}.{i}.hold_s"), *hold_s)?,
+            Term::ExpDecay { rate_per_s, .. } => c.non_negative(&format!("{key}.{i}.rate_per_s"), *rate_per_s)?,
+            Term::Sine { frequency_hz, .. } => c.non_negative(&format!("{key}.{i}.frequency_hz"), *frequency_hz)?,
+            Term::Constant { .. } | Term::Step { .. } => {}
+        }
+    }
+    Ok(())
+}
+
+/// Validate every value; the error names the source, the dotted key and the problem.
+pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
+    let c = Check { src };
+    if let Ok(v) = toml::Value::try_from(f) {
+        if let Some((key, x)) = first_non_finite(&v, &mut Vec::new()) {
+            return Err(c.fail(&key, format!("must be a finite number, got {x}")));
+        }
+    }
+    c.positive("sim.dt_s", f.sim.dt_s)?;
+    c.positive("sim.duration_s", f.sim.duration_s)?;
+    if f.sim.duration_s / f.sim.dt_s > 1e9 {
+        return Err(c.fail("sim.duration_s", "more than 1e9 steps: increase sim.dt_s or shorten the run"));
+    }
+
+    let h = &f.hydraulics;
+    for (k, v) in [
+        ("hydraulics.beta_pa", h.beta_pa),
+        ("hydraulics.v0_m3", h.v0_m3),
+        ("hydraulics.a1_m2", h.a1_m2),
+        ("hydraulics.a2_m2", h.a2_m2),
+        ("hydraulics.k_q", h.k_q),
+        ("hydraulics.tau_s", h.tau_s),
+        ("hydraulics.k_s", h.k_s),
+        ("hydraulics.supply_pressure_pa", h.supply_pressure_pa),
+    ] {
+        c.positive(k, v)?;
+    }
+    c.non_negative("hydraulics.k_c", h.k_c)?;
+    c.non_negative("hydraulics.leakage", h.leakage)?;
+
+    let fr = &f.friction;
+    c.non_negative("friction.coulomb_n", fr.coulomb_n)?;
+    c.non_negative("friction.viscous_n_s_per_m", fr.viscous_n_s_per_m)?;
+    c.positive("friction.stribeck_velocity_m_s", fr.stribeck_velocity_m_s)?;
+    c.positive("friction.smoothing_velocity_m_s", fr.smoothing_velocity_m_s)?;
+    if fr.static_n < fr.coulomb_n {
+        return Err(c.fail("friction.static_n", format!("must be >= friction.coulomb_n ({}), got {}", fr.coulomb_n, fr.static_n)));
+    }
+
+    c.non_negative("bench.amplitude_m", f.bench.amplitude_m)?;
+    c.positive("bench.frequency_hz", f.bench.frequency_hz)?;
+    c.non_negative("reference.amplitude_n", f.reference.amplitude_n)?;
+    c.non_negative("reference.frequency_hz", f.reference.frequency_hz)?;
+
+    let ct = &f.controller;
+    c.positive("controller.gamma", ct.gamma)?;
+    c.positive("controller.k", ct.k)?;
+    c.positive("controller.delta", ct.delta)?;
+    c.non_negative("controller.zeta", ct.zeta)?;
+    c.non_negative("controller.sample_period_s", ct.sample_period_s)?;
+    if ct.sample_period_s > 0.0 {
+        let ratio = ct.sample_period_s / f.sim.dt_s;
+        if ratio < 1.0 - 1e-9 || (ratio - ratio.round()).abs() > 1e-6 {
+            return Err(c.fail(
+                "controller.sample_period_s",
+                format!("must be 0 (continuous) or a whole multiple of sim.dt_s = {}, got {}", f.sim.dt_s, ct.sample_period_s),
+            ));
+        }
+    }
+    c.positive("controller.rbf.width", ct.rbf.width)?;
+    c.positive("controller.rbf.eta", ct.rbf.eta)?;
+    c.positive("controller.observer.gain", ct.observer.gain)?;
+    if !(ct.observer.exponent > 0.0 && ct.observer.exponent < 1.0) {
+        return Err(c.fail("controller.observer.exponent", format!("must be in (0, 1), got {}", ct.observer.exponent)));
+    }
+    let n = &ct.nominal;
+    for (k, v) in [
+        ("controller.nominal.beta_pa", n.beta_pa),
+        ("controller.nominal.v0_m3", n.v0_m3),
+        ("controller.nominal.k_q", n.k_q),
+        ("controller.nominal.tau_s", n.tau_s),
+        ("controller.nominal.k_s", n.k_s),
+        ("controller.nominal.a1_m2", n.a1_m2),
+        ("controller.nominal.a2_m2", n.a2_m2),
+    ] {
+        if let Some(v) = v {
+            c.positive(k, v)?;
+        }
+    }
+    for (k, v) in [("controller.nominal.k_c", n.k_c), ("controller.nominal.leakage", n.leakage)] {
+        if let Some(v) = v {
+            c.non_negative(k, v)?;
+        }
+    }
+
+    c.non_negative("sensors.derivative_cutoff_hz", f.sensors.derivative_cutoff_hz)?;
+    signal(&c, "disturbance.force_rate", &f.disturbance.force_rate)?;
+    signal(&c, "disturbance.force_accel", &f.disturbance.force_accel)?;
+    signal(&c, "disturbance.spool", &f.disturbance.spool)?;
+
+    if f.human.mode == HumanMode::Cuff && f.plant.kind == PlantKind::Bench {
+        return Err(c.fail("human.mode", "`cuff` needs a leg to strap to; use `paper` or `off` with plant.kind = \"bench\""));
+    }
+    if let Some(b) = f.metrics.convergence_band_n {
+        c.positive("metrics.convergence_band_n", b)?;
+    }
+    c.non_negative("metrics.settle_s", f.metrics.settle_s)?;
+    Ok(())
+}
