@@ -53,11 +53,18 @@ pub enum Command {
 /// Execute a parsed command line. Returns the process exit code on success.
 pub fn run(cli: Cli) -> Result<i32> {
     match cli.command {
-        Command::Run { scenario, out, sets, quiet } => {
+        Command::Run {
+            scenario,
+            out,
+            sets,
+            quiet,
+        } => {
             let s = Scenario::load(scenario.as_deref(), &sets)?;
             let res = crate::sim::run(&s)?;
-            let json = serde_json::to_value(&res.summary)
-                .map_err(|e| Error::Write { path: out.join("summary.json"), message: e.to_string() })?;
+            let json = serde_json::to_value(&res.summary).map_err(|e| Error::Write {
+                path: out.join("summary.json"),
+                message: e.to_string(),
+            })?;
             let title = format!(
                 "{} | {} | F_d = {} N at {} Hz",
                 s.source_name,
@@ -73,7 +80,8 @@ pub fn run(cli: Cli) -> Result<i32> {
                 println!("max |F_L - F_d|     {:.4} N", m.max_abs_force_error_n);
                 println!(
                     "convergence time    {} (band {:.3} N)",
-                    m.force_convergence_time_s.map_or("never".into(), |t| format!("{t:.4} s")),
+                    m.force_convergence_time_s
+                        .map_or("never".into(), |t| format!("{t:.4} s")),
                     m.force_convergence_band_n
                 );
                 println!("RMS error           {:.4} N", m.rms_force_error_n);
@@ -83,7 +91,12 @@ pub fn run(cli: Cli) -> Result<i32> {
             }
             Ok(EXIT_OK)
         }
-        Command::Compare { scenario, plant, json, sets } => {
+        Command::Compare {
+            scenario,
+            plant,
+            json,
+            sets,
+        } => {
             let mut all = Vec::new();
             if let Some(p) = plant {
                 all.push(format!("plant.kind={p}"));
@@ -91,11 +104,16 @@ pub fn run(cli: Cli) -> Result<i32> {
             all.extend(sets);
             let base = Scenario::load(scenario.as_deref(), &all)?;
             let results = compare::run_cases(&base, &[])?;
-            println!("Paper cases on plant `{:?}` ({}):", base.file.plant.kind, base.source_name);
+            println!(
+                "Paper cases on plant `{:?}` ({}):",
+                base.file.plant.kind, base.source_name
+            );
             print!("{}", compare::table(&results));
             if let Some(p) = json {
-                let bytes = serde_json::to_vec_pretty(&results)
-                    .map_err(|e| Error::Write { path: p.clone(), message: e.to_string() })?;
+                let bytes = serde_json::to_vec_pretty(&results).map_err(|e| Error::Write {
+                    path: p.clone(),
+                    message: e.to_string(),
+                })?;
                 output::write_atomic(&p, &bytes)?;
             }
             Ok(EXIT_OK)

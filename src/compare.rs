@@ -1,6 +1,6 @@
 //! The paper's eight simulation cases (Tables 3 and 4) and their published numbers.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::scenario::Scenario;
 use crate::sim;
 use serde::Serialize;
@@ -22,14 +22,62 @@ pub struct PaperCase {
 
 /// Tables 3 and 4 of the paper.
 pub const PAPER_CASES: [PaperCase; 8] = [
-    PaperCase { frequency_hz: 2.0, gain: 100.0, controller: "arbfnn_fdo_znn", paper_max_error_n: 9.24, paper_convergence_s: 0.113 },
-    PaperCase { frequency_hz: 2.0, gain: 100.0, controller: "erl_smc", paper_max_error_n: 11.41, paper_convergence_s: 0.403 },
-    PaperCase { frequency_hz: 2.0, gain: 200.0, controller: "arbfnn_fdo_znn", paper_max_error_n: 4.62, paper_convergence_s: 0.047 },
-    PaperCase { frequency_hz: 2.0, gain: 200.0, controller: "erl_smc", paper_max_error_n: 7.58, paper_convergence_s: 0.385 },
-    PaperCase { frequency_hz: 10.0, gain: 200.0, controller: "arbfnn_fdo_znn", paper_max_error_n: 23.14, paper_convergence_s: 0.054 },
-    PaperCase { frequency_hz: 10.0, gain: 200.0, controller: "erl_smc", paper_max_error_n: 47.45, paper_convergence_s: 0.436 },
-    PaperCase { frequency_hz: 10.0, gain: 300.0, controller: "arbfnn_fdo_znn", paper_max_error_n: 15.4, paper_convergence_s: 0.037 },
-    PaperCase { frequency_hz: 10.0, gain: 300.0, controller: "erl_smc", paper_max_error_n: 33.58, paper_convergence_s: 0.389 },
+    PaperCase {
+        frequency_hz: 2.0,
+        gain: 100.0,
+        controller: "arbfnn_fdo_znn",
+        paper_max_error_n: 9.24,
+        paper_convergence_s: 0.113,
+    },
+    PaperCase {
+        frequency_hz: 2.0,
+        gain: 100.0,
+        controller: "erl_smc",
+        paper_max_error_n: 11.41,
+        paper_convergence_s: 0.403,
+    },
+    PaperCase {
+        frequency_hz: 2.0,
+        gain: 200.0,
+        controller: "arbfnn_fdo_znn",
+        paper_max_error_n: 4.62,
+        paper_convergence_s: 0.047,
+    },
+    PaperCase {
+        frequency_hz: 2.0,
+        gain: 200.0,
+        controller: "erl_smc",
+        paper_max_error_n: 7.58,
+        paper_convergence_s: 0.385,
+    },
+    PaperCase {
+        frequency_hz: 10.0,
+        gain: 200.0,
+        controller: "arbfnn_fdo_znn",
+        paper_max_error_n: 23.14,
+        paper_convergence_s: 0.054,
+    },
+    PaperCase {
+        frequency_hz: 10.0,
+        gain: 200.0,
+        controller: "erl_smc",
+        paper_max_error_n: 47.45,
+        paper_convergence_s: 0.436,
+    },
+    PaperCase {
+        frequency_hz: 10.0,
+        gain: 300.0,
+        controller: "arbfnn_fdo_znn",
+        paper_max_error_n: 15.4,
+        paper_convergence_s: 0.037,
+    },
+    PaperCase {
+        frequency_hz: 10.0,
+        gain: 300.0,
+        controller: "erl_smc",
+        paper_max_error_n: 33.58,
+        paper_convergence_s: 0.389,
+    },
 ];
 
 /// Our result for one case next to the paper's.
@@ -37,16 +85,18 @@ pub const PAPER_CASES: [PaperCase; 8] = [
 pub struct CaseResult {
     /// The case.
     pub case: PaperCase,
-    /// Our maximum tracking error (N).
-    pub max_abs_force_error_n: f64,
-    /// (ours - paper)/paper, in percent.
-    pub max_error_diff_pct: f64,
-    /// Our convergence time (s), null if it never entered the band.
+    /// Our maximum tracking error (N); null if the run diverged.
+    pub max_abs_force_error_n: Option<f64>,
+    /// (ours - paper)/paper, in percent; null if the run diverged.
+    pub max_error_diff_pct: Option<f64>,
+    /// Our convergence time (s), null if it never entered the band or diverged.
     pub force_convergence_time_s: Option<f64>,
     /// Band used (N).
     pub force_convergence_band_n: f64,
-    /// Our RMS error (N).
-    pub rms_force_error_n: f64,
+    /// Our RMS error (N); null if the run diverged.
+    pub rms_force_error_n: Option<f64>,
+    /// Why the case has no figures (the divergence message), if it has none.
+    pub failure: Option<String>,
 }
 
 /// The `--set` overrides that turn `base` into one paper case.
@@ -70,15 +120,32 @@ pub fn run_cases(base: &Scenario, extra_sets: &[String]) -> Result<Vec<CaseResul
             let mut sets = case_sets(c);
             sets.extend_from_slice(extra_sets);
             let s = base.with_sets(&sets)?;
-            let out = sim::run(&s)?;
-            let m = &out.summary;
-            Ok(CaseResult {
-                case: *c,
-                max_abs_force_error_n: m.max_abs_force_error_n,
-                max_error_diff_pct: 100.0 * (m.max_abs_force_error_n - c.paper_max_error_n) / c.paper_max_error_n,
-                force_convergence_time_s: m.force_convergence_time_s,
-                force_convergence_band_n: m.force_convergence_band_n,
-                rms_force_error_n: m.rms_force_error_n,
+            let band = s.convergence_band_n();
+            Ok(match sim::run(&s) {
+                Ok(out) => {
+                    let m = &out.summary;
+                    CaseResult {
+                        case: *c,
+                        max_abs_force_error_n: Some(m.max_abs_force_error_n),
+                        max_error_diff_pct: Some(
+                            100.0 * (m.max_abs_force_error_n - c.paper_max_error_n) / c.paper_max_error_n,
+                        ),
+                        force_convergence_time_s: m.force_convergence_time_s,
+                        force_convergence_band_n: band,
+                        rms_force_error_n: Some(m.rms_force_error_n),
+                        failure: None,
+                    }
+                }
+                Err(e @ Error::Diverged { .. }) => CaseResult {
+                    case: *c,
+                    max_abs_force_error_n: None,
+                    max_error_diff_pct: None,
+                    force_convergence_time_s: None,
+                    force_convergence_band_n: band,
+                    rms_force_error_n: None,
+                    failure: Some(e.to_string()),
+                },
+                Err(e) => return Err(e),
             })
         })
         .collect()
@@ -87,21 +154,28 @@ pub fn run_cases(base: &Scenario, extra_sets: &[String]) -> Result<Vec<CaseResul
 /// Render the comparison as a text table.
 pub fn table(results: &[CaseResult]) -> String {
     let mut s = String::new();
-    s.push_str("case               controller       max err (N)  paper (N)   diff %   conv (s)  paper conv (s)  band (N)\n");
+    s.push_str(
+        "case               controller       max err (N)  paper (N)   diff %   conv (s)  paper conv (s)  band (N)\n",
+    );
     for r in results {
         let c = &r.case;
         s.push_str(&format!(
-            "{:>4} Hz, gain {:<4} {:<16} {:>11.3}  {:>9.2}  {:>+7.2}   {:>8}  {:>14.3}  {:>8.2}\n",
-            c.frequency_hz,
-            c.gain,
-            c.controller,
-            r.max_abs_force_error_n,
-            c.paper_max_error_n,
-            r.max_error_diff_pct,
-            r.force_convergence_time_s.map_or("never".to_string(), |t| format!("{t:.3}")),
-            c.paper_convergence_s,
-            r.force_convergence_band_n
+            "{:>4} Hz, gain {:<4} {:<16} ",
+            c.frequency_hz, c.gain, c.controller
         ));
+        match (r.max_abs_force_error_n, r.max_error_diff_pct) {
+            (Some(m), Some(d)) => s.push_str(&format!(
+                "{:>11.3}  {:>9.2}  {:>+7.2}   {:>8}  {:>14.3}  {:>8.2}\n",
+                m,
+                c.paper_max_error_n,
+                d,
+                r.force_convergence_time_s
+                    .map_or("never".to_string(), |t| format!("{t:.3}")),
+                c.paper_convergence_s,
+                r.force_convergence_band_n
+            )),
+            _ => s.push_str(&format!("{}\n", r.failure.as_deref().unwrap_or("no result"))),
+        }
     }
     s
 }

@@ -90,7 +90,11 @@ pub fn summarise(s: &Scenario, r: &Record, wall_time_s: f64) -> Summary {
         peak_load_force_n: max_abs(&r.load_force_n),
         steps,
         wall_time_s,
-        steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
+        steps_per_second: if wall_time_s > 0.0 {
+            steps as f64 / wall_time_s
+        } else {
+            f64::INFINITY
+        },
         scenario: s.file.clone(),
     }
 }

@@ -19,7 +19,9 @@ pub struct SensorParams {
 
 impl Default for SensorParams {
     fn default() -> Self {
-        Self { derivative_cutoff_hz: 0.0 }
+        Self {
+            derivative_cutoff_hz: 0.0,
+        }
     }
 }
 

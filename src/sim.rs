@@ -19,7 +19,9 @@
 //! ```
 //! Row 0 of the record is the initial state at t = 0, so a run has `steps + 1` rows.
 
-use crate::control::{self, ControlOutput, Controller, ControllerGains, Measurement, NominalModel, MAX_CONTROLLER_STATES};
+use crate::control::{
+    self, ControlOutput, Controller, ControllerGains, Measurement, NominalModel, MAX_CONTROLLER_STATES,
+};
 use crate::disturbance::{Disturbances, CHANNEL_FORCE_ACCEL, CHANNEL_FORCE_RATE, CHANNEL_SPOOL};
 use crate::error::{Error, Result};
 use crate::human::{HumanMode, HumanParams};
@@ -147,7 +149,13 @@ impl Model<'_> {
     }
 
     /// The force-channel inputs other than `u`, and x2 = dF_L/dt, at time `t`.
-    fn environment(&self, t: f64, h: &ForceChannelState, piston_vel: f64, r: &RefSample) -> (ForceChannelInput, f64, f64) {
+    fn environment(
+        &self,
+        t: f64,
+        h: &ForceChannelState,
+        piston_vel: f64,
+        r: &RefSample,
+    ) -> (ForceChannelInput, f64, f64) {
         let (d_f, d_f_rate) = self.dist.force_rate.value_and_rate(t, self.seed, CHANNEL_FORCE_RATE);
         let mut inp = ForceChannelInput {
             valve_command: 0.0,
@@ -170,7 +178,11 @@ impl Model<'_> {
     /// Evaluate the continuous dynamics at (t, x). `held` is the sampled-mode output.
     fn eval(&self, t: f64, x: &X, plant: &dyn Plant, held: Option<&ControlOutput>) -> Eval {
         let piston = plant.piston_at(t);
-        let h = ForceChannelState { force_n: x[0], spool_m: x[1], accel_dist_n_per_s: x[2] };
+        let h = ForceChannelState {
+            force_n: x[0],
+            spool_m: x[1],
+            accel_dist_n_per_s: x[2],
+        };
         let r = self.reference_at(t);
         let (mut inp, x2, d_f_rate) = self.environment(t, &h, piston.velocity_m_s, &r);
         let truth = Truth {
@@ -209,7 +221,12 @@ impl Model<'_> {
             0 => "load_force_n".into(),
             1 => "spool_m".into(),
             2 => "accel_disturbance_integral_n_per_s".into(),
-            _ => self.controller.state_names().get(i - NH).cloned().unwrap_or_else(|| format!("x{i}")),
+            _ => self
+                .controller
+                .state_names()
+                .get(i - NH)
+                .cloned()
+                .unwrap_or_else(|| format!("x{i}")),
         }
     }
 }
@@ -223,9 +240,25 @@ fn build_plant(s: &Scenario) -> Box<dyn Plant> {
 /// Build the controller a scenario asks for, with its nominal model.
 pub fn build_controller(s: &Scenario) -> (Box<dyn Controller>, NominalModel) {
     let f = &s.file;
-    let nominal = NominalModel { c: f.controller.nominal.apply(&f.hydraulics).coefficients() };
-    let gains = ControllerGains { gamma: f.controller.gamma, k: f.controller.k, delta: f.controller.delta, zeta: f.controller.zeta };
-    (control::build(f.controller.kind, nominal, &gains, &f.controller.rbf, &f.controller.observer), nominal)
+    let nominal = NominalModel {
+        c: f.controller.nominal.apply(&f.hydraulics).coefficients(),
+    };
+    let gains = ControllerGains {
+        gamma: f.controller.gamma,
+        k: f.controller.k,
+        delta: f.controller.delta,
+        zeta: f.controller.zeta,
+    };
+    (
+        control::build(
+            f.controller.kind,
+            nominal,
+            &gains,
+            &f.controller.rbf,
+            &f.controller.observer,
+        ),
+        nominal,
+    )
 }
 
 /// Run a validated scenario to the end.
@@ -295,7 +328,8 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         rec.piston_m.push(p.position_m);
         rec.piston_velocity_m_s.push(p.velocity_m_s);
         rec.friction_force_n.push(model.friction.force_n(p.velocity_m_s));
-        rec.disturbance_estimate_n_per_s2.push(e.out.disturbance_estimate_n_per_s2);
+        rec.disturbance_estimate_n_per_s2
+            .push(e.out.disturbance_estimate_n_per_s2);
         rec.rbf_output_n_per_s2.push(e.out.rbf_output_n_per_s2);
         rec.lumped_disturbance_n_per_s2.push(e.lumped_d);
     };
@@ -316,14 +350,10 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
                 };
                 let y = sens.sample(&truth);
                 let r = model.reference_at(t);
-                let s = &x[NH..NH + ns];
-                held = model.controller.output(t, &r, &y, s);
-                let mut ds = [0.0; MAX_CONTROLLER_STATES];
-                model.controller.derivatives(t, &r, &y, s, &held, &mut ds[..ns]);
-                let ts = f.controller.sample_period_s;
-                for i in 0..ns {
-                    x[NH + i] += ts * ds[i];
-                }
+                held = model.controller.output(t, &r, &y, &x[NH..NH + ns]);
+                model
+                    .controller
+                    .discrete_update(t, f.controller.sample_period_s, &r, &y, &mut x[NH..NH + ns], &held);
             }
         }
         if k == 0 {
@@ -332,11 +362,18 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         }
         let hold = sample_every.map(|_| held);
         let p_ref = plant.as_ref();
-        x = f.sim.integrator.step(t, dt, &x, |tau, xs| model.eval(tau, xs, p_ref, hold.as_ref()).dx);
+        x = f
+            .sim
+            .integrator
+            .step(t, dt, &x, |tau, xs| model.eval(tau, xs, p_ref, hold.as_ref()).dx);
         let v = plant.piston_at(t).velocity_m_s;
         plant.advance(t, dt, x[0] - model.friction.force_n(v));
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-            return Err(Error::Diverged { time_s: t + dt, state: model.state_name(i), value: x[i] });
+            return Err(Error::Diverged {
+                time_s: t + dt,
+                state: model.state_name(i),
+                value: x[i],
+            });
         }
         let t1 = (k + 1) as f64 * dt;
         let e = model.eval(t1, &x, plant.as_ref(), hold.as_ref());

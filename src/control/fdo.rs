@@ -14,7 +14,10 @@ pub struct ObserverParams {
 
 impl Default for ObserverParams {
     fn default() -> Self {
-        Self { gain: 1.0, exponent: 1.0 / 3.0 }
+        Self {
+            gain: 1.0,
+            exponent: 1.0 / 3.0,
+        }
     }
 }
 
@@ -22,8 +25,8 @@ impl Default for ObserverParams {
 /// `psi(Xi) = Xi + sig(Xi)^r + sig(Xi)^(1/r) + sigmoid(Xi)`, `sig(x)^a = |x|^a*sgn(x)`,
 /// `sigmoid(x) = 2/(1+exp(-x)) - 1` (odd). Its state `z` lives in the controller.
 ///
-/// Stiffness: `d psi/d Xi` grows like `3*Xi^2/r`... for r = 1/3 the cubic term dominates,
-/// so a large disturbance makes the observer stiff (see README: observer limits).
+/// Stiffness: for r = 1/3 the cubic term dominates, `d psi/d Xi ~ 3*Xi^2`, so a large
+/// disturbance makes the observer stiff (see README, "Observer limits").
 #[derive(Debug, Clone)]
 pub struct Fdo {
     p: ObserverParams,
@@ -40,6 +43,19 @@ impl Fdo {
         let r = self.p.exponent;
         let a = xi.abs();
         xi + a.powf(r).copysign(xi) + a.powf(1.0 / r).copysign(xi) + (2.0 / (1.0 + (-xi).exp()) - 1.0)
+    }
+
+    /// d(L*psi)/dXi, for implicit updates.
+    pub fn estimate_slope(&self, xi: f64) -> f64 {
+        let r = self.p.exponent;
+        let a = xi.abs().max(1e-300);
+        let e = (-xi).exp();
+        let sig = if e.is_finite() {
+            2.0 * e / ((1.0 + e) * (1.0 + e))
+        } else {
+            0.0
+        };
+        self.p.gain * (1.0 + r * a.powf(r - 1.0) + a.powf(1.0 / r - 1.0) / r + sig)
     }
 
     /// D_hat = L*psi(Xi) (N/s^2).

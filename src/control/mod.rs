@@ -73,6 +73,18 @@ pub trait Controller: Send + Sync {
     fn output(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64]) -> ControlOutput;
     /// Time derivative of the internal state (pure). `u` is the output just computed.
     fn derivatives(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]);
+
+    /// Sampled mode: advance the internal state over one sample period `ts_s` after the
+    /// output `u` was computed from the sample. Default: forward Euler on [`Self::derivatives`],
+    /// which is what simple firmware does.
+    fn discrete_update(&self, t_s: f64, ts_s: f64, r: &RefSample, y: &Measurement, s: &mut [f64], u: &ControlOutput) {
+        let mut ds = [0.0; MAX_CONTROLLER_STATES];
+        let n = s.len();
+        self.derivatives(t_s, r, y, s, u, &mut ds[..n]);
+        for (x, d) in s.iter_mut().zip(&ds[..n]) {
+            *x += ts_s * d;
+        }
+    }
 }
 
 /// The controller's nominal model: the parts of the paper's Eq. 5 it inverts.
@@ -135,9 +147,11 @@ pub fn build(
 ) -> Box<dyn Controller> {
     match kind {
         ControllerKind::Znn => Box::new(Znn::new(model, gains.gamma, None)),
-        ControllerKind::ArbfnnFdoZnn => {
-            Box::new(Znn::new(model, gains.gamma, Some((RbfNetwork::new(rbf.clone()), Fdo::new(obs.clone())))))
-        }
+        ControllerKind::ArbfnnFdoZnn => Box::new(Znn::new(
+            model,
+            gains.gamma,
+            Some((RbfNetwork::new(rbf.clone()), Fdo::new(obs.clone()))),
+        )),
         ControllerKind::ErlSmc => Box::new(ErlSmc::new(model, gains.k, gains.delta, gains.zeta)),
     }
 }

@@ -23,7 +23,11 @@ pub struct Znn {
 impl Znn {
     /// A ZNN controller with design parameter `gamma` (1/s).
     pub fn new(model: NominalModel, gamma: f64, compensation: Option<(RbfNetwork, Fdo)>) -> Self {
-        Self { model, gamma, compensation }
+        Self {
+            model,
+            gamma,
+            compensation,
+        }
     }
 
     /// The desired dx2/dt of the ZNN design: xd_ddot - 2*gamma*(x2 - xd_dot) - gamma^2*(x1 - x_d).
@@ -50,7 +54,9 @@ impl Controller for Znn {
 
     fn state_names(&self) -> Vec<String> {
         if self.compensation.is_some() {
-            std::iter::once("observer_z".to_string()).chain((1..=RBF_NODES).map(|i| format!("rbf_weight_{i}"))).collect()
+            std::iter::once("observer_z".to_string())
+                .chain((1..=RBF_NODES).map(|i| format!("rbf_weight_{i}")))
+                .collect()
         } else {
             Vec::new()
         }
@@ -75,7 +81,11 @@ impl Controller for Znn {
             }
         };
         let u = self.model.invert(self.desired_accel(r, y) - comp, y);
-        ControlOutput { valve_command: u, disturbance_estimate_n_per_s2: comp, rbf_output_n_per_s2: g_hat }
+        ControlOutput {
+            valve_command: u,
+            disturbance_estimate_n_per_s2: comp,
+            rbf_output_n_per_s2: g_hat,
+        }
     }
 
     fn derivatives(&self, _t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]) {
@@ -85,6 +95,37 @@ impl Controller for Znn {
             ds[0] = self.model.force_accel(u.valve_command, y) + u.rbf_output_n_per_s2 + fdo.estimate(xi);
             let h = rbf.activations(&Self::rbf_input(r, y));
             rbf.weight_rates(&h, xi, &mut ds[1..=RBF_NODES]);
+        }
+    }
+
+    /// Sampled mode. The observer's `sig(Xi)^(1/r)` term (cubic for r = 1/3) makes forward
+    /// Euler unstable as soon as `Ts*L*dpsi/dXi > 2`, which a half-sample lag in the
+    /// differentiated load-cell signal reaches within milliseconds at 1 kHz. So the observer
+    /// state is advanced with backward Euler (solved by Newton's method; psi is monotonic, so
+    /// the solution is unique), as careful firmware would; the weights use the new Xi.
+    fn discrete_update(&self, _t_s: f64, ts_s: f64, r: &RefSample, y: &Measurement, s: &mut [f64], u: &ControlOutput) {
+        let Some((rbf, fdo)) = &self.compensation else { return };
+        let x2 = y.force_rate_n_per_s;
+        let a = self.model.force_accel(u.valve_command, y) + u.rbf_output_n_per_s2;
+        // Solve z1 = z0 + Ts*(a + L*psi(x2 - z1)) for z1.
+        let z0 = s[0];
+        let mut z = z0 + ts_s * (a + fdo.estimate(x2 - z0));
+        for _ in 0..50 {
+            let res = z - z0 - ts_s * (a + fdo.estimate(x2 - z));
+            let jac = 1.0 + ts_s * fdo.estimate_slope(x2 - z);
+            let step = res / jac;
+            z -= step;
+            if step.abs() <= 1e-12 * (1.0 + z.abs()) {
+                break;
+            }
+        }
+        s[0] = z;
+        let xi = x2 - z;
+        let h = rbf.activations(&Self::rbf_input(r, y));
+        let mut dw = [0.0; RBF_NODES];
+        rbf.weight_rates(&h, xi, &mut dw);
+        for (w, d) in s[1..=RBF_NODES].iter_mut().zip(dw) {
+            *w += ts_s * d;
         }
     }
 }

@@ -48,7 +48,12 @@ mod tests {
 
     #[test]
     fn sine_derivatives_match_finite_differences() {
-        let s = Sine { amplitude: 200.0, frequency_hz: 2.0, phase_rad: 0.3, offset: 5.0 };
+        let s = Sine {
+            amplitude: 200.0,
+            frequency_hz: 2.0,
+            phase_rad: 0.3,
+            offset: 5.0,
+        };
         let (t, h) = (0.137, 1e-6);
         let a = s.at(t);
         let (p, m) = (s.at(t + h), s.at(t - h));

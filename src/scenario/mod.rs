@@ -37,7 +37,11 @@ pub struct SimSection {
 
 impl Default for SimSection {
     fn default() -> Self {
-        Self { dt_s: 0.001, duration_s: 1.0, integrator: Integrator::Ode3 }
+        Self {
+            dt_s: 0.001,
+            duration_s: 1.0,
+            integrator: Integrator::Ode3,
+        }
     }
 }
 
@@ -81,7 +85,13 @@ pub struct ReferenceSection {
 
 impl Default for ReferenceSection {
     fn default() -> Self {
-        Self { kind: ReferenceKind::Sine, amplitude_n: 200.0, frequency_hz: 2.0, phase_rad: 0.0, offset_n: 0.0 }
+        Self {
+            kind: ReferenceKind::Sine,
+            amplitude_n: 200.0,
+            frequency_hz: 2.0,
+            phase_rad: 0.0,
+            offset_n: 0.0,
+        }
     }
 }
 
@@ -247,11 +257,16 @@ impl Scenario {
     /// `None` loads the embedded default.
     pub fn load(path: Option<&Path>, sets: &[String]) -> Result<Scenario> {
         let (name, table) = match path {
-            None => (DEFAULT_SCENARIO_NAME.to_string(), overrides::parse_toml(DEFAULT_SCENARIO_NAME, DEFAULT_SCENARIO_TOML)?),
+            None => (
+                DEFAULT_SCENARIO_NAME.to_string(),
+                overrides::parse_toml(DEFAULT_SCENARIO_NAME, DEFAULT_SCENARIO_TOML)?,
+            ),
             Some(p) => {
                 let name = p.display().to_string();
-                let text = std::fs::read_to_string(p)
-                    .map_err(|e| Error::Read { path: p.to_path_buf(), message: e.to_string() })?;
+                let text = std::fs::read_to_string(p).map_err(|e| Error::Read {
+                    path: p.to_path_buf(),
+                    message: e.to_string(),
+                })?;
                 let table = if p.extension().is_some_and(|e| e == "json") {
                     overrides::parse_json(&name, &text)?
                 } else {
@@ -272,13 +287,23 @@ impl Scenario {
         for s in sets {
             overrides::apply_set(&mut table, s)?;
         }
-        let source = if sets.is_empty() { name.clone() } else { format!("{name} (with --set)") };
+        let source = if sets.is_empty() {
+            name.clone()
+        } else {
+            format!("{name} (with --set)")
+        };
         let file: ScenarioFile = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(|e| {
             let key = e.path().to_string();
-            Error::input(&source, if key == "." { String::new() } else { key }, e.into_inner().to_string())
+            let msg = e.into_inner().to_string();
+            // The TOML deserialiser appends "in `key`" on a second line; the key is already named.
+            let msg = msg.lines().next().unwrap_or_default().to_string();
+            Error::input(&source, if key == "." { String::new() } else { key }, msg)
         })?;
         validate::validate(&source, &file)?;
-        Ok(Scenario { source_name: source, file })
+        Ok(Scenario {
+            source_name: source,
+            file,
+        })
     }
 
     /// Same scenario with overrides applied on top (used by `compare` and sweeps).
@@ -292,7 +317,10 @@ impl Scenario {
 
     /// Convergence band (N): the scenario's, or 1% of the reference amplitude.
     pub fn convergence_band_n(&self) -> f64 {
-        self.file.metrics.convergence_band_n.unwrap_or(0.01 * self.file.reference.amplitude_n)
+        self.file
+            .metrics
+            .convergence_band_n
+            .unwrap_or(0.01 * self.file.reference.amplitude_n)
     }
 
     /// Number of fixed steps in the run.

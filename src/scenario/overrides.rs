@@ -23,10 +23,24 @@ pub(super) fn parse_json(name: &str, text: &str) -> Result<toml::Table> {
         Some(s) if v.get("max_abs_force_error_n").is_some() => s.clone(),
         _ => v,
     };
-    match toml::Value::try_from(v) {
+    match toml::Value::try_from(strip_nulls(v)) {
         Ok(toml::Value::Table(t)) => Ok(t),
         Ok(_) => Err(Error::input(name, "", "a scenario must be a JSON object")),
         Err(e) => Err(Error::input(name, "", format!("cannot use as scenario: {e}"))),
+    }
+}
+
+/// TOML has no null: an absent key means "default", which is what JSON's null means here.
+fn strip_nulls(v: serde_json::Value) -> serde_json::Value {
+    match v {
+        serde_json::Value::Object(m) => serde_json::Value::Object(
+            m.into_iter()
+                .filter(|(_, v)| !v.is_null())
+                .map(|(k, v)| (k, strip_nulls(v)))
+                .collect(),
+        ),
+        serde_json::Value::Array(a) => serde_json::Value::Array(a.into_iter().map(strip_nulls).collect()),
+        other => other,
     }
 }
 
@@ -53,11 +67,17 @@ pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
             cur.insert(p.to_string(), value);
             return Ok(());
         }
-        let entry = cur.entry(p.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let entry = cur
+            .entry(p.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
         cur = match entry {
             toml::Value::Table(t) => t,
             _ => {
-                return Err(Error::input("--set", key, format!("`{}` is not a table", parts[..=i].join("."))));
+                return Err(Error::input(
+                    "--set",
+                    key,
+                    format!("`{}` is not a table", parts[..=i].join(".")),
+                ));
             }
         };
     }

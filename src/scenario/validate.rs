@@ -73,7 +73,10 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     c.positive("sim.dt_s", f.sim.dt_s)?;
     c.positive("sim.duration_s", f.sim.duration_s)?;
     if f.sim.duration_s / f.sim.dt_s > 1e9 {
-        return Err(c.fail("sim.duration_s", "more than 1e9 steps: increase sim.dt_s or shorten the run"));
+        return Err(c.fail(
+            "sim.duration_s",
+            "more than 1e9 steps: increase sim.dt_s or shorten the run",
+        ));
     }
 
     let h = &f.hydraulics;
@@ -98,7 +101,10 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     c.positive("friction.stribeck_velocity_m_s", fr.stribeck_velocity_m_s)?;
     c.positive("friction.smoothing_velocity_m_s", fr.smoothing_velocity_m_s)?;
     if fr.static_n < fr.coulomb_n {
-        return Err(c.fail("friction.static_n", format!("must be >= friction.coulomb_n ({}), got {}", fr.coulomb_n, fr.static_n)));
+        return Err(c.fail(
+            "friction.static_n",
+            format!("must be >= friction.coulomb_n ({}), got {}", fr.coulomb_n, fr.static_n),
+        ));
     }
 
     c.non_negative("bench.amplitude_m", f.bench.amplitude_m)?;
@@ -117,7 +123,10 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
         if ratio < 1.0 - 1e-9 || (ratio - ratio.round()).abs() > 1e-6 {
             return Err(c.fail(
                 "controller.sample_period_s",
-                format!("must be 0 (continuous) or a whole multiple of sim.dt_s = {}, got {}", f.sim.dt_s, ct.sample_period_s),
+                format!(
+                    "must be 0 (continuous) or a whole multiple of sim.dt_s = {}, got {}",
+                    f.sim.dt_s, ct.sample_period_s
+                ),
             ));
         }
     }
@@ -125,7 +134,10 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     c.positive("controller.rbf.eta", ct.rbf.eta)?;
     c.positive("controller.observer.gain", ct.observer.gain)?;
     if !(ct.observer.exponent > 0.0 && ct.observer.exponent < 1.0) {
-        return Err(c.fail("controller.observer.exponent", format!("must be in (0, 1), got {}", ct.observer.exponent)));
+        return Err(c.fail(
+            "controller.observer.exponent",
+            format!("must be in (0, 1), got {}", ct.observer.exponent),
+        ));
     }
     let n = &ct.nominal;
     for (k, v) in [
@@ -141,7 +153,10 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
             c.positive(k, v)?;
         }
     }
-    for (k, v) in [("controller.nominal.k_c", n.k_c), ("controller.nominal.leakage", n.leakage)] {
+    for (k, v) in [
+        ("controller.nominal.k_c", n.k_c),
+        ("controller.nominal.leakage", n.leakage),
+    ] {
         if let Some(v) = v {
             c.non_negative(k, v)?;
         }
@@ -153,7 +168,10 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     signal(&c, "disturbance.spool", &f.disturbance.spool)?;
 
     if f.human.mode == HumanMode::Cuff && f.plant.kind == PlantKind::Bench {
-        return Err(c.fail("human.mode", "`cuff` needs a leg to strap to; use `paper` or `off` with plant.kind = \"bench\""));
+        return Err(c.fail(
+            "human.mode",
+            "`cuff` needs a leg to strap to; use `paper` or `off` with plant.kind = \"bench\"",
+        ));
     }
     if let Some(b) = f.metrics.convergence_band_n {
         c.positive("metrics.convergence_band_n", b)?;

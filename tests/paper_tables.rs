@@ -1,0 +1,66 @@
+//! The paper's Tables 3 and 4 on the bench plant: continuous control, ode3 at 1 ms, the
+//! paper's disturbances (the embedded default scenario).
+
+use exoleg::compare::{run_cases, PAPER_CASES};
+use exoleg::Scenario;
+
+#[test]
+fn arbfnn_fdo_znn_max_errors_within_half_percent_and_erl_smc_worse() {
+    let base = Scenario::load(None, &[]).unwrap();
+    assert_eq!(base.file.plant.kind, exoleg::plant::PlantKind::Bench);
+    let res = run_cases(&base, &[]).unwrap();
+    assert_eq!(res.len(), PAPER_CASES.len());
+    for r in &res {
+        assert!(r.failure.is_none(), "{:?}", r.failure);
+    }
+    for pair in res.chunks(2) {
+        let (znn, smc) = (&pair[0], &pair[1]);
+        assert_eq!(znn.case.controller, "arbfnn_fdo_znn");
+        assert_eq!(smc.case.controller, "erl_smc");
+        let d = znn.max_error_diff_pct.unwrap();
+        assert!(
+            d.abs() < 0.5,
+            "{:?}: ours {:?} vs paper {} ({d:+.3}%)",
+            znn.case,
+            znn.max_abs_force_error_n,
+            znn.case.paper_max_error_n
+        );
+        // ERL-SMC is worse in maximum error and convergence time.
+        assert!(smc.max_abs_force_error_n.unwrap() > znn.max_abs_force_error_n.unwrap());
+        let tz = znn.force_convergence_time_s.expect("ZNN converges");
+        let ts = smc.force_convergence_time_s.unwrap_or(f64::INFINITY);
+        assert!(ts > tz, "convergence ERL-SMC {ts} vs ZNN {tz}");
+    }
+}
+
+/// The ZNN closed loop is e'' + 2 gamma e' + gamma^2 e = 0 with e(0) = 0,
+/// e'(0) = -dF_d/dt(0), so max |e| = A*w/(gamma*e) at t = 1/gamma: an independent answer.
+#[test]
+fn plain_znn_without_disturbance_follows_the_critically_damped_error_law() {
+    for (f_hz, gamma) in [(2.0, 100.0), (10.0, 200.0)] {
+        let s = exoleg::Scenario::load(
+            None,
+            &[
+                "controller.kind=\"znn\"".into(),
+                format!("controller.gamma={gamma:?}"),
+                format!("reference.frequency_hz={f_hz:?}"),
+                "disturbance.force_accel=[]".into(),
+                "disturbance.state_gain_force=0.0".into(),
+                "disturbance.state_gain_force_rate=0.0".into(),
+                "sim.dt_s=0.0001".into(),
+                "sim.duration_s=0.1".into(),
+            ],
+        )
+        .unwrap();
+        let out = exoleg::run(&s).unwrap();
+        let w = std::f64::consts::TAU * f_hz;
+        // Exact error of the tracking law for a sine reference: the particular solution is 0,
+        // so e(t) = -A*w*t*exp(-gamma*t).
+        let mut worst: f64 = 0.0;
+        for (t, e) in out.record.t_s.iter().zip(&out.record.force_error_n) {
+            let exact = -200.0 * w * t * (-gamma * t).exp();
+            worst = worst.max((e - exact).abs());
+        }
+        assert!(worst < 1e-3, "f={f_hz} gamma={gamma}: worst deviation {worst} N");
+    }
+}
