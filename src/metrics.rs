@@ -33,12 +33,12 @@ pub fn settle_index(t_s: &[f64], settle_s: f64) -> usize {
     t_s.partition_point(|&t| t < settle_s - 1e-12)
 }
 
-/// Fraction of samples with |x| >= limit.
-pub fn fraction_at_limit(xs: &[f64], limit: f64) -> f64 {
+/// Arithmetic mean (0 for an empty slice); of a 0/1 flag column, the fraction of time set.
+pub fn mean(xs: &[f64]) -> f64 {
     if xs.is_empty() {
         return 0.0;
     }
-    xs.iter().filter(|x| x.abs() >= limit).count() as f64 / xs.len() as f64
+    xs.iter().sum::<f64>() / xs.len() as f64
 }
 
 /// The summary written to `summary.json`.
@@ -62,6 +62,10 @@ pub struct Summary {
     pub max_abs_valve_command: f64,
     /// max |F_L| (N).
     pub peak_load_force_n: f64,
+    /// Fraction of samples with the valve command clipped by `actuator.valve_command_limit`.
+    pub valve_saturation_fraction: f64,
+    /// Fraction of samples with F_L at the supply-pressure limit.
+    pub force_limit_fraction: f64,
     /// Number of fixed steps.
     pub steps: usize,
     /// Wall-clock time of the simulation loop (s).
@@ -88,6 +92,8 @@ pub fn summarise(s: &Scenario, r: &Record, wall_time_s: f64) -> Summary {
         rms_force_error_after_settle_n: rms(&r.force_error_n[i0..]),
         max_abs_valve_command: max_abs(&r.valve_command),
         peak_load_force_n: max_abs(&r.load_force_n),
+        valve_saturation_fraction: mean(&r.valve_saturated),
+        force_limit_fraction: mean(&r.force_limited),
         steps,
         wall_time_s,
         steps_per_second: if wall_time_s > 0.0 {

@@ -1,27 +1,116 @@
-//! What the controller sees: ideal signals (continuous mode) or sampled, held readings
-//! with derivatives computed the way firmware does (sampled mode).
+//! What the controller sees: ideal signals (continuous mode) or the sampled sensor chain of
+//! a digital controller (sampled mode).
 //!
-//! In sampled mode the load-cell derivative x2 and the piston velocity and acceleration are
-//! backward differences of the sampled readings, optionally passed through a first-order
-//! low-pass (`sensors.derivative_cutoff_hz`, 0 = no filter). x2 is never rebuilt from the
-//! nominal model (that would hide exactly the disturbances the observer exists to see).
+//! Sampled chain, per channel and per sample (all seeded, deterministic):
+//!
+//! ```text
+//! reading = quantise(truth + N(0, noise_std^2))      // A/D: `bits` over [-range, +range]
+//! delayed = reading from `delay_samples` samples ago  // transport + processing delay
+//! rate    = low-pass((delayed_k - delayed_{k-1}) / Ts) // firmware derivative
+//! ```
+//! The load-cell rate x2 and the piston velocity and acceleration are such filtered
+//! differences. x2 is never rebuilt from the nominal model (that would hide exactly the
+//! disturbances the observer exists to see).
 
 use crate::control::Measurement;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
 
-/// Sensor parameters (scenario section `[sensors]`).
+/// A/D converter presets for the quantisation of every channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SensorPreset {
+    /// No quantisation.
+    Ideal,
+    /// 32-bit converters (the paper's experiment).
+    Adc32,
+    /// 16-bit converters (a realistic embedded board).
+    Adc16,
+}
+
+impl SensorPreset {
+    /// Bits of the preset (None = no quantisation).
+    pub fn bits(&self) -> Option<u32> {
+        match self {
+            SensorPreset::Ideal => None,
+            SensorPreset::Adc32 => Some(32),
+            SensorPreset::Adc16 => Some(16),
+        }
+    }
+}
+
+/// One measured channel.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ChannelParams {
+    /// Standard deviation of additive Gaussian noise (channel unit). Default 0. >= 0.
+    pub noise_std: f64,
+    /// A/D resolution in bits; absent = the preset's. 0 = no quantisation.
+    pub bits: Option<u32>,
+    /// Full scale: readings are clamped to and quantised over [-range, +range] (channel
+    /// unit); absent = the channel's default (force 5000 N, spool 1e-3 m, piston 0.1 m,
+    /// knee pi rad). > 0.
+    pub range: Option<f64>,
+}
+
+/// Default full scales of the channels force, spool, piston, knee.
+pub const DEFAULT_RANGES: [f64; 4] = [5000.0, 1e-3, 0.1, std::f64::consts::PI];
+
+/// Sensor parameters (scenario section `[sensors]`). Only used in sampled mode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorParams {
+    /// Quantisation preset: `ideal` (default), `adc32`, `adc16`.
+    pub preset: SensorPreset,
+    /// Measurement delay in whole samples. Default 0.
+    pub delay_samples: usize,
     /// Cut-off of the first-order low-pass on differentiated signals (Hz); 0 = raw difference.
     pub derivative_cutoff_hz: f64,
+    /// Load cell (N).
+    pub force: ChannelParams,
+    /// Valve spool LVDT (m).
+    pub spool: ChannelParams,
+    /// Piston position (m).
+    pub piston: ChannelParams,
+    /// Knee angle encoder (rad).
+    pub knee: ChannelParams,
 }
 
 impl Default for SensorParams {
     fn default() -> Self {
         Self {
+            preset: SensorPreset::Ideal,
+            delay_samples: 0,
             derivative_cutoff_hz: 0.0,
+            force: ChannelParams::default(),
+            spool: ChannelParams::default(),
+            piston: ChannelParams::default(),
+            knee: ChannelParams::default(),
         }
+    }
+}
+
+impl SensorParams {
+    /// True when any effect beyond sampling is configured (noise, quantisation, delay, filter).
+    pub fn has_effects(&self) -> bool {
+        let ch = [&self.force, &self.spool, &self.piston, &self.knee];
+        self.preset != SensorPreset::Ideal
+            || self.delay_samples > 0
+            || self.derivative_cutoff_hz > 0.0
+            || ch.iter().any(|c| c.noise_std > 0.0 || c.bits.unwrap_or(0) > 0)
+    }
+
+    /// The channels with their dotted key prefix (for validation messages).
+    pub fn channels(&self) -> [(&'static str, &ChannelParams); 4] {
+        [
+            ("sensors.force", &self.force),
+            ("sensors.spool", &self.spool),
+            ("sensors.piston", &self.piston),
+            ("sensors.knee", &self.knee),
+        ]
     }
 }
 
@@ -40,6 +129,8 @@ pub struct Truth {
     pub piston_velocity_m_s: f64,
     /// Piston acceleration (m/s^2).
     pub piston_accel_m_s2: f64,
+    /// Knee angle (rad), 0 on the bench.
+    pub knee_rad: f64,
 }
 
 impl Truth {
@@ -52,6 +143,7 @@ impl Truth {
             piston_m: self.piston_m,
             piston_velocity_m_s: self.piston_velocity_m_s,
             piston_accel_m_s2: self.piston_accel_m_s2,
+            knee_rad: self.knee_rad,
         }
     }
 }
@@ -72,19 +164,54 @@ impl Differentiator {
     }
 }
 
-/// The sampled sensor chain. Holds the previous samples for the differences.
+/// A resolved A/D channel.
+#[derive(Debug, Clone)]
+struct Adc {
+    noise_std: f64,
+    /// Quantisation step (unit); 0 = none.
+    lsb: f64,
+    range: f64,
+}
+
+impl Adc {
+    fn new(c: &ChannelParams, preset: SensorPreset, default_range: f64) -> Self {
+        let bits = c.bits.or(preset.bits()).unwrap_or(0);
+        let range = c.range.unwrap_or(default_range);
+        let lsb = if bits == 0 { 0.0 } else { 2.0 * range / 2f64.powi(bits as i32) };
+        Self { noise_std: c.noise_std, lsb, range }
+    }
+
+    fn read(&self, x: f64, rng: &mut ChaCha8Rng) -> f64 {
+        let n: f64 = if self.noise_std > 0.0 { {
+            let z: f64 = StandardNormal.sample(rng);
+            self.noise_std * z
+        } } else { 0.0 };
+        let v = x + n;
+        if self.lsb > 0.0 {
+            (v.clamp(-self.range, self.range) / self.lsb).round() * self.lsb
+        } else {
+            v
+        }
+    }
+}
+
+/// The sampled sensor chain. Holds the previous samples for the differences and the delay line.
 #[derive(Debug, Clone)]
 pub struct SampledSensors {
     period_s: f64,
     alpha: f64,
+    adc: [Adc; 4],
+    rng: ChaCha8Rng,
+    delay: usize,
+    line: VecDeque<[f64; 4]>,
     d_force: Differentiator,
     d_piston: Differentiator,
     d_piston_vel: Differentiator,
 }
 
 impl SampledSensors {
-    /// Sensors sampled every `period_s` seconds.
-    pub fn new(p: &SensorParams, period_s: f64) -> Self {
+    /// Sensors sampled every `period_s` seconds, noise drawn from a stream seeded by `seed`.
+    pub fn new(p: &SensorParams, period_s: f64, seed: u64) -> Self {
         // Exact discretisation of a first-order low-pass: alpha = 1 - exp(-2*pi*fc*Ts).
         let alpha = if p.derivative_cutoff_hz > 0.0 {
             1.0 - (-std::f64::consts::TAU * p.derivative_cutoff_hz * period_s).exp()
@@ -94,6 +221,10 @@ impl SampledSensors {
         Self {
             period_s,
             alpha,
+            adc: std::array::from_fn(|i| Adc::new(p.channels()[i].1, p.preset, DEFAULT_RANGES[i])),
+            rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5E45_0125),
+            delay: p.delay_samples,
+            line: VecDeque::with_capacity(p.delay_samples + 1),
             d_force: Differentiator::default(),
             d_piston: Differentiator::default(),
             d_piston_vel: Differentiator::default(),
@@ -102,17 +233,49 @@ impl SampledSensors {
 
     /// Take one sample of the plant.
     pub fn sample(&mut self, truth: &Truth) -> Measurement {
+        let raw = [truth.force_n, truth.spool_m, truth.piston_m, truth.knee_rad];
+        let reading: [f64; 4] = std::array::from_fn(|i| self.adc[i].read(raw[i], &mut self.rng));
+        self.line.push_back(reading);
+        // Until the delay line fills, firmware sees its first reading.
+        let r = if self.line.len() > self.delay { self.line.pop_front().unwrap() } else { self.line[0] };
         let (ts, a) = (self.period_s, self.alpha);
-        let force_rate = self.d_force.update(truth.force_n, ts, a);
-        let vel = self.d_piston.update(truth.piston_m, ts, a);
+        let force_rate = self.d_force.update(r[0], ts, a);
+        let vel = self.d_piston.update(r[2], ts, a);
         let acc = self.d_piston_vel.update(vel, ts, a);
         Measurement {
-            force_n: truth.force_n,
+            force_n: r[0],
             force_rate_n_per_s: force_rate,
-            spool_m: truth.spool_m,
-            piston_m: truth.piston_m,
+            spool_m: r[1],
+            piston_m: r[2],
             piston_velocity_m_s: vel,
             piston_accel_m_s2: acc,
+            knee_rad: r[3],
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantisation_noise_and_delay() {
+        let p = SensorParams { preset: SensorPreset::Adc16, delay_samples: 2, ..Default::default() };
+        let mut s = SampledSensors::new(&p, 1e-3, 1);
+        let lsb = 10000.0 / 65536.0;
+        let ys: Vec<f64> =
+            (0..5).map(|k| s.sample(&Truth { force_n: 100.0 * k as f64 + 0.05, ..Default::default() }).force_n).collect();
+        // Delay of two samples (first reading repeated until the line fills), on the LSB grid.
+        assert_eq!(ys[0], ys[1]);
+        assert!((ys[2] - 0.05).abs() <= lsb / 2.0 + 1e-12);
+        assert!((ys[4] - 200.05).abs() <= lsb / 2.0 + 1e-12);
+        assert!(((ys[3] / lsb) - (ys[3] / lsb).round()).abs() < 1e-9);
+
+        let mut p = SensorParams::default();
+        p.force.noise_std = 2.0;
+        let mut s = SampledSensors::new(&p, 1e-3, 7);
+        let xs: Vec<f64> = (0..20000).map(|_| s.sample(&Truth::default()).force_n).collect();
+        let sd = (xs.iter().map(|x| x * x).sum::<f64>() / xs.len() as f64).sqrt();
+        assert!((sd - 2.0).abs() < 0.05, "noise sd {sd}");
     }
 }

@@ -7,27 +7,32 @@
 //!     y      = sensors.sample(truth(t_k))                // plant -> controller
 //!     u_hold = controller.output(t_k, ref(t_k), y, s)
 //!     s     += Ts * controller.derivatives(...)          // firmware: forward Euler
+//! w1 = human interaction from the force error at t_k        // cuff mode: held over the step
 //! integrate x = [F_L, x_v, r, s...] over [t_k, t_k+dt] with the chosen RK scheme;
 //! at every stage tau:
 //!     piston = plant.piston_at(tau)                      // prescribed or held from the leg
 //!     x2     = dF_L/dt from the force ODE (no u needed)
 //!     u      = continuous ? controller.output(tau, ref(tau), ideal y, s) : u_hold
-//!     derivatives of the force channel (+ controller state in continuous mode)
-//! F_f = friction(piston velocity);  plant.advance(t_k, dt, F_L - F_f)
+//!     u      = clamp(u, valve limit)                     // the controller is told (anti-windup)
+//!     derivatives of the force channel (+ controller state in continuous mode),
+//!     with x_v and F_L held at their limits (spool travel, p_s*A1 / p_s*A2)
+//! F_f = friction(piston velocity)
+//! miss = plant.advance(t_k, dt, F_L - F_f (or the prescribed force), w1)
+//! F_L -= n2 * miss                                       // oil spring sees the geometric stroke
 //! check every state is finite (else Error::Diverged naming the state and time)
 //! record(t_{k+1}, ...)
 //! ```
 //! Row 0 of the record is the initial state at t = 0, so a run has `steps + 1` rows.
 
-use crate::control::{
-    self, ControlOutput, Controller, ControllerGains, Measurement, NominalModel, MAX_CONTROLLER_STATES,
-};
+use crate::control::{self, ControlOutput, Controller, ControllerGains, Measurement, NominalModel, MAX_CONTROLLER_STATES};
 use crate::disturbance::{Disturbances, CHANNEL_FORCE_ACCEL, CHANNEL_FORCE_RATE, CHANNEL_SPOOL};
 use crate::error::{Error, Result};
 use crate::human::{HumanMode, HumanParams};
-use crate::hydraulics::{Coefficients, ForceChannelInput, ForceChannelState, FrictionParams};
+use crate::hydraulics::{
+    ActuatorMode, ActuatorParams, Coefficients, ForceChannelInput, ForceChannelState, ForceSource, FrictionParams,
+};
 use crate::metrics::{self, Summary};
-use crate::plant::{Bench, Plant, PlantKind};
+use crate::plant::{Bench, Plant, PlantInputs, PlantKind};
 use crate::reference::{RefSample, Sine};
 use crate::scenario::{ReferenceKind, Scenario};
 use crate::sensors::{SampledSensors, Truth};
@@ -53,16 +58,24 @@ pub struct Record {
     pub force_error_n: Vec<f64>,
     /// True dF_L/dt (N/s).
     pub force_rate_n_per_s: Vec<f64>,
-    /// Valve command u (held value in sampled mode).
+    /// Valve command u as applied (after the valve limit; the held value in sampled mode).
     pub valve_command: Vec<f64>,
+    /// 1 when the valve command was clipped, else 0.
+    pub valve_saturated: Vec<f64>,
     /// Spool position x_v (m).
     pub spool_m: Vec<f64>,
+    /// 1 when F_L is at the supply-pressure limit, else 0.
+    pub force_limited: Vec<f64>,
     /// Piston position x_c (m).
     pub piston_m: Vec<f64>,
     /// Piston velocity (m/s).
     pub piston_velocity_m_s: Vec<f64>,
     /// Friction force (N), with the sign of the piston velocity.
     pub friction_force_n: Vec<f64>,
+    /// Net force applied along the cylinder (N): F_L - F_f, or the prescribed force.
+    pub cylinder_force_n: Vec<f64>,
+    /// Human interaction force w1 (N in cuff mode, N/s^2 in paper mode).
+    pub interaction_force: Vec<f64>,
     /// Controller's disturbance estimate g_hat + D_hat (N/s^2).
     pub disturbance_estimate_n_per_s2: Vec<f64>,
     /// RBF network output g_hat (N/s^2).
@@ -70,10 +83,14 @@ pub struct Record {
     /// True lumped disturbance on dx2/dt relative to the controller's nominal model (N/s^2):
     /// what a perfect observer would estimate.
     pub lumped_disturbance_n_per_s2: Vec<f64>,
+    /// Names of the plant-specific columns (with units).
+    pub extra_names: Vec<&'static str>,
+    /// Plant-specific columns (knee angle, cylinder length, ...), same order as `extra_names`.
+    pub extra: Vec<Vec<f64>>,
 }
 
 impl Record {
-    fn with_capacity(n: usize) -> Self {
+    fn with_capacity(n: usize, extra_names: Vec<&'static str>) -> Self {
         let v = || Vec::with_capacity(n);
         Record {
             t_s: v(),
@@ -83,19 +100,25 @@ impl Record {
             force_error_n: v(),
             force_rate_n_per_s: v(),
             valve_command: v(),
+            valve_saturated: v(),
             spool_m: v(),
+            force_limited: v(),
             piston_m: v(),
             piston_velocity_m_s: v(),
             friction_force_n: v(),
+            cylinder_force_n: v(),
+            interaction_force: v(),
             disturbance_estimate_n_per_s2: v(),
             rbf_output_n_per_s2: v(),
             lumped_disturbance_n_per_s2: v(),
+            extra: extra_names.iter().map(|_| v()).collect(),
+            extra_names,
         }
     }
 
     /// The columns with their CSV header names, in output order.
     pub fn columns(&self) -> Vec<(&'static str, &[f64])> {
-        vec![
+        let mut c: Vec<(&'static str, &[f64])> = vec![
             ("t_s", &self.t_s),
             ("ref_force_n", &self.ref_force_n),
             ("ref_force_rate_n_per_s", &self.ref_force_rate_n_per_s),
@@ -103,14 +126,25 @@ impl Record {
             ("force_error_n", &self.force_error_n),
             ("force_rate_n_per_s", &self.force_rate_n_per_s),
             ("valve_command", &self.valve_command),
+            ("valve_saturated", &self.valve_saturated),
             ("spool_m", &self.spool_m),
+            ("force_limited", &self.force_limited),
             ("piston_m", &self.piston_m),
             ("piston_velocity_m_s", &self.piston_velocity_m_s),
             ("friction_force_n", &self.friction_force_n),
+            ("cylinder_force_n", &self.cylinder_force_n),
+            ("interaction_force", &self.interaction_force),
             ("disturbance_estimate_n_per_s2", &self.disturbance_estimate_n_per_s2),
             ("rbf_output_n_per_s2", &self.rbf_output_n_per_s2),
             ("lumped_disturbance_n_per_s2", &self.lumped_disturbance_n_per_s2),
-        ]
+        ];
+        c.extend(self.extra_names.iter().copied().zip(self.extra.iter().map(|v| v.as_slice())));
+        c
+    }
+
+    /// A plant-specific column by name.
+    pub fn extra_column(&self, name: &str) -> Option<&[f64]> {
+        self.extra_names.iter().position(|n| *n == name).map(|i| self.extra[i].as_slice())
     }
 }
 
@@ -129,6 +163,7 @@ struct Eval {
     out: ControlOutput,
     x2: f64,
     lumped_d: f64,
+    force_limited: bool,
 }
 
 /// The immutable model of a run, built once from a scenario.
@@ -140,6 +175,9 @@ struct Model<'a> {
     dist: &'a Disturbances,
     human: &'a HumanParams,
     friction: &'a FrictionParams,
+    act: &'a ActuatorParams,
+    /// Load-force bounds (N): [-p_s*A2, p_s*A1], or infinite.
+    force_bounds: (f64, f64),
     seed: u64,
 }
 
@@ -148,14 +186,8 @@ impl Model<'_> {
         self.reference.at(t)
     }
 
-    /// The force-channel inputs other than `u`, and x2 = dF_L/dt, at time `t`.
-    fn environment(
-        &self,
-        t: f64,
-        h: &ForceChannelState,
-        piston_vel: f64,
-        r: &RefSample,
-    ) -> (ForceChannelInput, f64, f64) {
+    /// The force-channel inputs other than `u`, x2 = dF_L/dt, and d(d_F)/dt at time `t`.
+    fn environment(&self, t: f64, h: &ForceChannelState, piston_vel: f64, r: &RefSample) -> (ForceChannelInput, f64, f64) {
         let (d_f, d_f_rate) = self.dist.force_rate.value_and_rate(t, self.seed, CHANNEL_FORCE_RATE);
         let mut inp = ForceChannelInput {
             valve_command: 0.0,
@@ -175,31 +207,42 @@ impl Model<'_> {
         (inp, x2, d_f_rate)
     }
 
+    /// Apply the valve limit to a controller output.
+    fn limit(&self, mut o: ControlOutput) -> ControlOutput {
+        let lim = self.act.valve_command_limit;
+        if lim > 0.0 && o.valve_command.abs() > lim {
+            o.valve_command = o.valve_command.clamp(-lim, lim);
+            o.saturated = true;
+        }
+        o
+    }
+
+    fn truth(&self, x: &X, x2: f64, plant: &dyn Plant, t: f64) -> Truth {
+        let p = plant.piston_at(t);
+        Truth {
+            force_n: x[0],
+            force_rate_n_per_s: x2,
+            spool_m: x[1],
+            piston_m: p.position_m,
+            piston_velocity_m_s: p.velocity_m_s,
+            piston_accel_m_s2: p.accel_m_s2,
+            knee_rad: plant.knee_rad(),
+        }
+    }
+
     /// Evaluate the continuous dynamics at (t, x). `held` is the sampled-mode output.
     fn eval(&self, t: f64, x: &X, plant: &dyn Plant, held: Option<&ControlOutput>) -> Eval {
         let piston = plant.piston_at(t);
-        let h = ForceChannelState {
-            force_n: x[0],
-            spool_m: x[1],
-            accel_dist_n_per_s: x[2],
-        };
+        let h = ForceChannelState { force_n: x[0], spool_m: x[1], accel_dist_n_per_s: x[2] };
         let r = self.reference_at(t);
         let (mut inp, x2, d_f_rate) = self.environment(t, &h, piston.velocity_m_s, &r);
-        let truth = Truth {
-            force_n: h.force_n,
-            force_rate_n_per_s: x2,
-            spool_m: h.spool_m,
-            piston_m: piston.position_m,
-            piston_velocity_m_s: piston.velocity_m_s,
-            piston_accel_m_s2: piston.accel_m_s2,
-        };
-        let y = truth.ideal();
+        let y = self.truth(x, x2, plant, t).ideal();
         let mut dx = [0.0; NX];
         let out = match held {
             Some(o) => *o,
             None => {
                 let s = &x[NH..];
-                let o = self.controller.output(t, &r, &y, s);
+                let o = self.limit(self.controller.output(t, &r, &y, s));
                 self.controller.derivatives(t, &r, &y, s, &o, &mut dx[NH..]);
                 o
             }
@@ -209,11 +252,42 @@ impl Model<'_> {
         dx[0] = dh.force_n;
         dx[1] = dh.spool_m;
         dx[2] = dh.accel_dist_n_per_s;
+        // Hard stops: spool travel and the supply-pressure force bounds.
+        let sl = self.act.spool_limit_m;
+        if sl > 0.0 && x[1].abs() >= sl && dx[1] * x[1] > 0.0 {
+            dx[1] = 0.0;
+        }
+        let (lo, hi) = self.force_bounds;
+        let force_limited = x[0] <= lo || x[0] >= hi;
+        if (x[0] >= hi && dx[0] > 0.0) || (x[0] <= lo && dx[0] < 0.0) {
+            dx[0] = 0.0;
+        }
         // True dx2/dt, and the part of it the controller's nominal model does not explain.
         let c = &self.coeffs;
         let dx2 = c.n1 * dh.spool_m - c.n2 * piston.accel_m_s2 - c.n3 * x2 + d_f_rate + inp.force_accel_dist_n_per_s2;
         let lumped_d = dx2 - self.nominal.force_accel(out.valve_command, &y);
-        Eval { dx, out, x2, lumped_d }
+        Eval { dx, out, x2, lumped_d, force_limited }
+    }
+
+    /// Clamp the states that sit against hard stops after a step.
+    fn clamp(&self, x: &mut X) {
+        let sl = self.act.spool_limit_m;
+        if sl > 0.0 {
+            x[1] = x[1].clamp(-sl, sl);
+        }
+        x[0] = x[0].clamp(self.force_bounds.0, self.force_bounds.1);
+    }
+
+    /// The net force the actuator applies to the mechanics.
+    fn cylinder_force(&self, x: &X, piston_vel: f64, r: &RefSample) -> f64 {
+        match self.act.mode {
+            ActuatorMode::Hydraulic => x[0] - self.friction.force_n(piston_vel),
+            ActuatorMode::Force => match self.act.force_source {
+                ForceSource::Constant => self.act.force_n,
+                ForceSource::Reference => r.value,
+            },
+            ActuatorMode::Free => 0.0,
+        }
     }
 
     fn state_name(&self, i: usize) -> String {
@@ -221,44 +295,24 @@ impl Model<'_> {
             0 => "load_force_n".into(),
             1 => "spool_m".into(),
             2 => "accel_disturbance_integral_n_per_s".into(),
-            _ => self
-                .controller
-                .state_names()
-                .get(i - NH)
-                .cloned()
-                .unwrap_or_else(|| format!("x{i}")),
+            _ => self.controller.state_names().get(i - NH).cloned().unwrap_or_else(|| format!("x{i}")),
         }
     }
 }
 
-fn build_plant(s: &Scenario) -> Box<dyn Plant> {
-    match s.file.plant.kind {
+fn build_plant(s: &Scenario) -> Result<Box<dyn Plant>> {
+    Ok(match s.file.plant.kind {
         PlantKind::Bench => Box::new(Bench::new(s.file.bench.clone())),
-    }
+    })
 }
 
 /// Build the controller a scenario asks for, with its nominal model.
 pub fn build_controller(s: &Scenario) -> (Box<dyn Controller>, NominalModel) {
     let f = &s.file;
-    let nominal = NominalModel {
-        c: f.controller.nominal.apply(&f.hydraulics).coefficients(),
-    };
-    let gains = ControllerGains {
-        gamma: f.controller.gamma,
-        k: f.controller.k,
-        delta: f.controller.delta,
-        zeta: f.controller.zeta,
-    };
-    (
-        control::build(
-            f.controller.kind,
-            nominal,
-            &gains,
-            &f.controller.rbf,
-            &f.controller.observer,
-        ),
-        nominal,
-    )
+    let nominal = NominalModel { c: f.controller.nominal.apply(&f.hydraulics).coefficients() };
+    let gains =
+        ControllerGains { gamma: f.controller.gamma, k: f.controller.k, delta: f.controller.delta, zeta: f.controller.zeta };
+    (control::build(f.controller.kind, nominal, &gains, &f.controller.rbf, &f.controller.observer), nominal)
 }
 
 /// Run a validated scenario to the end.
@@ -274,6 +328,11 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
             offset: f.reference.offset_n,
         },
     };
+    let force_bounds = if f.actuator.pressure_limit {
+        (-f.hydraulics.max_pull_force_n(), f.hydraulics.max_push_force_n())
+    } else {
+        (f64::NEG_INFINITY, f64::INFINITY)
+    };
     let model = Model {
         coeffs: f.hydraulics.coefficients(),
         nominal,
@@ -282,39 +341,31 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         dist: &f.disturbance,
         human: &f.human,
         friction: &f.friction,
+        act: &f.actuator,
+        force_bounds,
         seed: f.seed,
     };
-    let mut plant = build_plant(scenario);
+    let mut plant = build_plant(scenario)?;
     let dt = f.sim.dt_s;
     let steps = scenario.steps();
-    let sample_every = if f.controller.sample_period_s > 0.0 {
-        Some((f.controller.sample_period_s / dt).round() as usize)
-    } else {
-        None
-    };
-    let mut sensors = sample_every.map(|_| SampledSensors::new(&f.sensors, f.controller.sample_period_s));
+    let sample_every =
+        if f.controller.sample_period_s > 0.0 { Some((f.controller.sample_period_s / dt).round() as usize) } else { None };
+    let mut sensors = sample_every.map(|_| SampledSensors::new(&f.sensors, f.controller.sample_period_s, f.seed));
 
     // Initial state: F_L(0) = 0, spool centred, controller initialised from the first reading.
     let mut x: X = [0.0; NX];
     {
         let r0 = model.reference_at(0.0);
         let e0 = model.eval(0.0, &x, plant.as_ref(), Some(&ControlOutput::default()));
-        let p0 = plant.piston_at(0.0);
-        let y0 = Measurement {
-            force_n: x[0],
-            force_rate_n_per_s: e0.x2,
-            spool_m: x[1],
-            piston_m: p0.position_m,
-            piston_velocity_m_s: p0.velocity_m_s,
-            piston_accel_m_s2: p0.accel_m_s2,
-        };
+        let y0: Measurement = model.truth(&x, e0.x2, plant.as_ref(), 0.0).ideal();
         model.controller.init(&y0, &r0, &mut x[NH..]);
     }
     let ns = model.controller.state_len();
     let mut held = ControlOutput::default();
-    let mut rec = Record::with_capacity(steps + 1);
+    let mut rec = Record::with_capacity(steps + 1, plant.extra_names());
+    let mut extra = Vec::with_capacity(rec.extra_names.len());
 
-    let record = |t: f64, x: &X, e: &Eval, rec: &mut Record, plant: &dyn Plant| {
+    let mut record = |t: f64, x: &X, e: &Eval, w1: f64, rec: &mut Record, plant: &dyn Plant| {
         let r = model.reference_at(t);
         let p = plant.piston_at(t);
         rec.t_s.push(t);
@@ -324,60 +375,62 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         rec.force_error_n.push(x[0] - r.value);
         rec.force_rate_n_per_s.push(e.x2);
         rec.valve_command.push(e.out.valve_command);
+        rec.valve_saturated.push(if e.out.saturated { 1.0 } else { 0.0 });
         rec.spool_m.push(x[1]);
+        rec.force_limited.push(if e.force_limited { 1.0 } else { 0.0 });
         rec.piston_m.push(p.position_m);
         rec.piston_velocity_m_s.push(p.velocity_m_s);
         rec.friction_force_n.push(model.friction.force_n(p.velocity_m_s));
-        rec.disturbance_estimate_n_per_s2
-            .push(e.out.disturbance_estimate_n_per_s2);
+        rec.cylinder_force_n.push(model.cylinder_force(x, p.velocity_m_s, &r));
+        rec.interaction_force.push(w1);
+        rec.disturbance_estimate_n_per_s2.push(e.out.disturbance_estimate_n_per_s2);
         rec.rbf_output_n_per_s2.push(e.out.rbf_output_n_per_s2);
         rec.lumped_disturbance_n_per_s2.push(e.lumped_d);
+        extra.clear();
+        plant.extra_values(&mut extra);
+        for (col, v) in rec.extra.iter_mut().zip(&extra) {
+            col.push(*v);
+        }
     };
 
     for k in 0..steps {
         let t = k as f64 * dt;
         if let (Some(m), Some(sens)) = (sample_every, sensors.as_mut()) {
             if k % m == 0 {
-                let p = plant.piston_at(t);
                 let e = model.eval(t, &x, plant.as_ref(), Some(&held));
-                let truth = Truth {
-                    force_n: x[0],
-                    force_rate_n_per_s: e.x2,
-                    spool_m: x[1],
-                    piston_m: p.position_m,
-                    piston_velocity_m_s: p.velocity_m_s,
-                    piston_accel_m_s2: p.accel_m_s2,
-                };
-                let y = sens.sample(&truth);
+                let y = sens.sample(&model.truth(&x, e.x2, plant.as_ref(), t));
                 let r = model.reference_at(t);
-                held = model.controller.output(t, &r, &y, &x[NH..NH + ns]);
-                model
-                    .controller
-                    .discrete_update(t, f.controller.sample_period_s, &r, &y, &mut x[NH..NH + ns], &held);
+                held = model.limit(model.controller.output(t, &r, &y, &x[NH..NH + ns]));
+                model.controller.discrete_update(t, f.controller.sample_period_s, &r, &y, &mut x[NH..NH + ns], &held);
             }
         }
-        if k == 0 {
-            let e = model.eval(0.0, &x, plant.as_ref(), sample_every.map(|_| &held));
-            record(0.0, &x, &e, &mut rec, plant.as_ref());
-        }
         let hold = sample_every.map(|_| held);
+        let e0 = model.eval(t, &x, plant.as_ref(), hold.as_ref());
+        let r0 = model.reference_at(t);
+        let w1 = match model.human.mode {
+            HumanMode::Cuff => model.human.interaction(x[0] - r0.value, e0.x2 - r0.rate),
+            HumanMode::Paper => model.human.interaction(x[0] - r0.value, e0.x2 - r0.rate),
+            HumanMode::Off => 0.0,
+        };
+        if k == 0 {
+            record(0.0, &x, &e0, w1, &mut rec, plant.as_ref());
+        }
         let p_ref = plant.as_ref();
-        x = f
-            .sim
-            .integrator
-            .step(t, dt, &x, |tau, xs| model.eval(tau, xs, p_ref, hold.as_ref()).dx);
+        x = f.sim.integrator.step(t, dt, &x, |tau, xs| model.eval(tau, xs, p_ref, hold.as_ref()).dx);
         let v = plant.piston_at(t).velocity_m_s;
-        plant.advance(t, dt, x[0] - model.friction.force_n(v));
+        let inputs = PlantInputs {
+            cylinder_force_n: model.cylinder_force(&x, v, &r0),
+            cuff_force_n: if model.human.mode == HumanMode::Cuff { w1 } else { 0.0 },
+        };
+        let miss = plant.advance(t, dt, &inputs)?;
+        x[0] -= model.coeffs.n2 * miss;
+        model.clamp(&mut x);
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-            return Err(Error::Diverged {
-                time_s: t + dt,
-                state: model.state_name(i),
-                value: x[i],
-            });
+            return Err(Error::Diverged { time_s: t + dt, state: model.state_name(i), value: x[i] });
         }
         let t1 = (k + 1) as f64 * dt;
         let e = model.eval(t1, &x, plant.as_ref(), hold.as_ref());
-        record(t1, &x, &e, &mut rec, plant.as_ref());
+        record(t1, &x, &e, w1, &mut rec, plant.as_ref());
     }
     let wall = start.elapsed().as_secs_f64();
     let summary = metrics::summarise(scenario, &rec, wall);

@@ -43,6 +43,8 @@ pub struct Measurement {
     pub piston_velocity_m_s: f64,
     /// Piston acceleration xc_ddot (m/s^2).
     pub piston_accel_m_s2: f64,
+    /// Knee angle (rad) from the joint encoder (0 on the bench).
+    pub knee_rad: f64,
 }
 
 /// What a controller outputs besides the command, for logging.
@@ -55,6 +57,9 @@ pub struct ControlOutput {
     pub disturbance_estimate_n_per_s2: f64,
     /// The RBF network's part of it, `g_hat` (N/s^2).
     pub rbf_output_n_per_s2: f64,
+    /// True when the command was clipped by the valve limit: controllers stop adapting
+    /// (conditional integration, the anti-windup of the RBF weights).
+    pub saturated: bool,
 }
 
 /// A force controller. See the module doc for the evaluation contract.

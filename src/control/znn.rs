@@ -82,6 +82,7 @@ impl Controller for Znn {
         };
         let u = self.model.invert(self.desired_accel(r, y) - comp, y);
         ControlOutput {
+            saturated: false,
             valve_command: u,
             disturbance_estimate_n_per_s2: comp,
             rbf_output_n_per_s2: g_hat,
@@ -93,8 +94,12 @@ impl Controller for Znn {
             let xi = y.force_rate_n_per_s - s[0];
             // dz/dt = [n1*dx3/dt - n3*x2 - n2*xc_ddot + g_hat] + L*psi(Xi)   (paper Eq. 27)
             ds[0] = self.model.force_accel(u.valve_command, y) + u.rbf_output_n_per_s2 + fdo.estimate(xi);
-            let h = rbf.activations(&Self::rbf_input(r, y));
-            rbf.weight_rates(&h, xi, &mut ds[1..=RBF_NODES]);
+            if u.saturated {
+                ds[1..=RBF_NODES].fill(0.0);
+            } else {
+                let h = rbf.activations(&Self::rbf_input(r, y));
+                rbf.weight_rates(&h, xi, &mut ds[1..=RBF_NODES]);
+            }
         }
     }
 
@@ -120,6 +125,9 @@ impl Controller for Znn {
             }
         }
         s[0] = z;
+        if u.saturated {
+            return;
+        }
         let xi = x2 - z;
         let h = rbf.activations(&Self::rbf_input(r, y));
         let mut dw = [0.0; RBF_NODES];

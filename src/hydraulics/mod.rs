@@ -14,7 +14,9 @@
 //! model whose state is `F_L` rather than `dF_L/dt`: differentiating the first line gives
 //! exactly the paper's `dx2/dt = n1*dx3/dt - n2*xc_ddot - n3*x2 + D_acc`.
 
+mod actuator;
 mod friction;
+pub use actuator::*;
 pub use friction::*;
 
 use serde::{Deserialize, Serialize};

@@ -1,6 +1,7 @@
 //! Test-bench plant: the cylinder on a force-loading rig, piston motion prescribed.
 
-use super::{PistonMotion, Plant};
+use super::{PistonMotion, Plant, PlantInputs};
+use crate::error::Result;
 use serde::{Deserialize, Serialize};
 
 /// How the bench moves the piston.
@@ -64,5 +65,7 @@ impl Plant for Bench {
         }
     }
 
-    fn advance(&mut self, _t_s: f64, _dt_s: f64, _cylinder_force_n: f64) {}
+    fn advance(&mut self, _t_s: f64, _dt_s: f64, _inputs: &PlantInputs) -> Result<f64> {
+        Ok(0.0)
+    }
 }

@@ -6,6 +6,7 @@
 mod bench;
 pub use bench::*;
 
+use crate::error::Result;
 use serde::{Deserialize, Serialize};
 
 /// Which plant a scenario runs.
@@ -27,11 +28,34 @@ pub struct PistonMotion {
     pub accel_m_s2: f64,
 }
 
+/// What the loop applies to the plant over one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PlantInputs {
+    /// Net force along the cylinder axis (N), positive lengthening: load force minus friction
+    /// (or the prescribed force in `actuator.mode = "force"`).
+    pub cylinder_force_n: f64,
+    /// Human interaction force at the cuff (N), perpendicular to the shank, positive in the
+    /// direction of knee flexion (`human.mode = "cuff"`; ignored by the bench).
+    pub cuff_force_n: f64,
+}
+
 /// A plant as the co-simulation loop sees it.
 pub trait Plant: Send {
     /// Piston motion at time `t_s` inside the step that is about to be taken.
     fn piston_at(&self, t_s: f64) -> PistonMotion;
-    /// Advance the mechanics from `t_s` to `t_s + dt_s` under the net cylinder force
-    /// `cylinder_force_n` (N, load force minus friction, positive lengthening).
-    fn advance(&mut self, t_s: f64, dt_s: f64, cylinder_force_n: f64);
+    /// Knee angle (rad), 0 for plants without a knee.
+    fn knee_rad(&self) -> f64 {
+        0.0
+    }
+    /// Advance the mechanics from `t_s` to `t_s + dt_s`. Returns the piston displacement over
+    /// the step that the force ODE did not see (m): the actual change of cylinder length minus
+    /// the change implied by [`Plant::piston_at`] during the step. The loop adds `-n2` times it
+    /// to the load force, so the oil spring sees the geometric stroke exactly.
+    fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64>;
+    /// Names (with units) of plant-specific recorded columns.
+    fn extra_names(&self) -> Vec<&'static str> {
+        Vec::new()
+    }
+    /// Values of the plant-specific columns now, appended to `out`.
+    fn extra_values(&self, _out: &mut Vec<f64>) {}
 }

@@ -11,7 +11,7 @@ use crate::control::{ControllerKind, ObserverParams, RbfParams};
 use crate::disturbance::Disturbances;
 use crate::error::{Error, Result};
 use crate::human::HumanParams;
-use crate::hydraulics::{FrictionParams, HydraulicParams};
+use crate::hydraulics::{ActuatorParams, FrictionParams, HydraulicParams};
 use crate::integrator::Integrator;
 use crate::plant::{BenchParams, PlantKind};
 use crate::sensors::SensorParams;
@@ -209,6 +209,8 @@ pub struct ScenarioFile {
     pub hydraulics: HydraulicParams,
     /// Piston friction.
     pub friction: FrictionParams,
+    /// Actuator mode and limits.
+    pub actuator: ActuatorParams,
     /// Desired force.
     pub reference: ReferenceSection,
     /// Force controller.
@@ -232,6 +234,7 @@ impl Default for ScenarioFile {
             bench: BenchParams::default(),
             hydraulics: HydraulicParams::default(),
             friction: FrictionParams::default(),
+            actuator: ActuatorParams::default(),
             reference: ReferenceSection::default(),
             controller: ControllerSection::default(),
             sensors: SensorParams::default(),

@@ -4,6 +4,7 @@ use super::ScenarioFile;
 use crate::disturbance::{Signal, Term};
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
+use crate::hydraulics::ActuatorMode;
 use crate::plant::PlantKind;
 
 /// Find the first non-finite float anywhere in the scenario, with its dotted path.
@@ -163,6 +164,26 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     }
 
     c.non_negative("sensors.derivative_cutoff_hz", f.sensors.derivative_cutoff_hz)?;
+    for (key, ch) in f.sensors.channels() {
+        c.non_negative(&format!("{key}.noise_std"), ch.noise_std)?;
+        if let Some(r) = ch.range {
+            c.positive(&format!("{key}.range"), r)?;
+        }
+        if ch.bits.is_some_and(|b| b > 52) {
+            return Err(c.fail(&format!("{key}.bits"), "must be at most 52 (f64 resolution)"));
+        }
+    }
+    if f.sensors.has_effects() && ct.sample_period_s == 0.0 {
+        return Err(c.fail(
+            "sensors",
+            "noise, quantisation, delay and filtering act on sampled signals: set controller.sample_period_s > 0",
+        ));
+    }
+    c.non_negative("actuator.valve_command_limit", f.actuator.valve_command_limit)?;
+    c.non_negative("actuator.spool_limit_m", f.actuator.spool_limit_m)?;
+    if f.actuator.mode != ActuatorMode::Hydraulic && f.plant.kind == PlantKind::Bench {
+        return Err(c.fail("actuator.mode", "`force` and `free` drive a leg; the bench has no mechanics to drive"));
+    }
     signal(&c, "disturbance.force_rate", &f.disturbance.force_rate)?;
     signal(&c, "disturbance.force_accel", &f.disturbance.force_accel)?;
     signal(&c, "disturbance.spool", &f.disturbance.spool)?;
