@@ -177,15 +177,27 @@ impl Adc {
     fn new(c: &ChannelParams, preset: SensorPreset, default_range: f64) -> Self {
         let bits = c.bits.or(preset.bits()).unwrap_or(0);
         let range = c.range.unwrap_or(default_range);
-        let lsb = if bits == 0 { 0.0 } else { 2.0 * range / 2f64.powi(bits as i32) };
-        Self { noise_std: c.noise_std, lsb, range }
+        let lsb = if bits == 0 {
+            0.0
+        } else {
+            2.0 * range / 2f64.powi(bits as i32)
+        };
+        Self {
+            noise_std: c.noise_std,
+            lsb,
+            range,
+        }
     }
 
     fn read(&self, x: f64, rng: &mut ChaCha8Rng) -> f64 {
-        let n: f64 = if self.noise_std > 0.0 { {
-            let z: f64 = StandardNormal.sample(rng);
-            self.noise_std * z
-        } } else { 0.0 };
+        let n: f64 = if self.noise_std > 0.0 {
+            {
+                let z: f64 = StandardNormal.sample(rng);
+                self.noise_std * z
+            }
+        } else {
+            0.0
+        };
         let v = x + n;
         if self.lsb > 0.0 {
             (v.clamp(-self.range, self.range) / self.lsb).round() * self.lsb
@@ -237,7 +249,11 @@ impl SampledSensors {
         let reading: [f64; 4] = std::array::from_fn(|i| self.adc[i].read(raw[i], &mut self.rng));
         self.line.push_back(reading);
         // Until the delay line fills, firmware sees its first reading.
-        let r = if self.line.len() > self.delay { self.line.pop_front().unwrap() } else { self.line[0] };
+        let r = if self.line.len() > self.delay {
+            self.line.pop_front().unwrap()
+        } else {
+            self.line[0]
+        };
         let (ts, a) = (self.period_s, self.alpha);
         let force_rate = self.d_force.update(r[0], ts, a);
         let vel = self.d_piston.update(r[2], ts, a);
@@ -260,11 +276,22 @@ mod tests {
 
     #[test]
     fn quantisation_noise_and_delay() {
-        let p = SensorParams { preset: SensorPreset::Adc16, delay_samples: 2, ..Default::default() };
+        let p = SensorParams {
+            preset: SensorPreset::Adc16,
+            delay_samples: 2,
+            ..Default::default()
+        };
         let mut s = SampledSensors::new(&p, 1e-3, 1);
         let lsb = 10000.0 / 65536.0;
-        let ys: Vec<f64> =
-            (0..5).map(|k| s.sample(&Truth { force_n: 100.0 * k as f64 + 0.05, ..Default::default() }).force_n).collect();
+        let ys: Vec<f64> = (0..5)
+            .map(|k| {
+                s.sample(&Truth {
+                    force_n: 100.0 * k as f64 + 0.05,
+                    ..Default::default()
+                })
+                .force_n
+            })
+            .collect();
         // Delay of two samples (first reading repeated until the line fills), on the LSB grid.
         assert_eq!(ys[0], ys[1]);
         assert!((ys[2] - 0.05).abs() <= lsb / 2.0 + 1e-12);

@@ -24,7 +24,9 @@
 //! ```
 //! Row 0 of the record is the initial state at t = 0, so a run has `steps + 1` rows.
 
-use crate::control::{self, ControlOutput, Controller, ControllerGains, Measurement, NominalModel, MAX_CONTROLLER_STATES};
+use crate::control::{
+    self, ControlOutput, Controller, ControllerGains, Measurement, NominalModel, MAX_CONTROLLER_STATES,
+};
 use crate::disturbance::{Disturbances, CHANNEL_FORCE_ACCEL, CHANNEL_FORCE_RATE, CHANNEL_SPOOL};
 use crate::error::{Error, Result};
 use crate::human::{HumanMode, HumanParams};
@@ -138,13 +140,21 @@ impl Record {
             ("rbf_output_n_per_s2", &self.rbf_output_n_per_s2),
             ("lumped_disturbance_n_per_s2", &self.lumped_disturbance_n_per_s2),
         ];
-        c.extend(self.extra_names.iter().copied().zip(self.extra.iter().map(|v| v.as_slice())));
+        c.extend(
+            self.extra_names
+                .iter()
+                .copied()
+                .zip(self.extra.iter().map(|v| v.as_slice())),
+        );
         c
     }
 
     /// A plant-specific column by name.
     pub fn extra_column(&self, name: &str) -> Option<&[f64]> {
-        self.extra_names.iter().position(|n| *n == name).map(|i| self.extra[i].as_slice())
+        self.extra_names
+            .iter()
+            .position(|n| *n == name)
+            .map(|i| self.extra[i].as_slice())
     }
 }
 
@@ -187,7 +197,13 @@ impl Model<'_> {
     }
 
     /// The force-channel inputs other than `u`, x2 = dF_L/dt, and d(d_F)/dt at time `t`.
-    fn environment(&self, t: f64, h: &ForceChannelState, piston_vel: f64, r: &RefSample) -> (ForceChannelInput, f64, f64) {
+    fn environment(
+        &self,
+        t: f64,
+        h: &ForceChannelState,
+        piston_vel: f64,
+        r: &RefSample,
+    ) -> (ForceChannelInput, f64, f64) {
         let (d_f, d_f_rate) = self.dist.force_rate.value_and_rate(t, self.seed, CHANNEL_FORCE_RATE);
         let mut inp = ForceChannelInput {
             valve_command: 0.0,
@@ -233,7 +249,11 @@ impl Model<'_> {
     /// Evaluate the continuous dynamics at (t, x). `held` is the sampled-mode output.
     fn eval(&self, t: f64, x: &X, plant: &dyn Plant, held: Option<&ControlOutput>) -> Eval {
         let piston = plant.piston_at(t);
-        let h = ForceChannelState { force_n: x[0], spool_m: x[1], accel_dist_n_per_s: x[2] };
+        let h = ForceChannelState {
+            force_n: x[0],
+            spool_m: x[1],
+            accel_dist_n_per_s: x[2],
+        };
         let r = self.reference_at(t);
         let (mut inp, x2, d_f_rate) = self.environment(t, &h, piston.velocity_m_s, &r);
         let y = self.truth(x, x2, plant, t).ideal();
@@ -266,7 +286,13 @@ impl Model<'_> {
         let c = &self.coeffs;
         let dx2 = c.n1 * dh.spool_m - c.n2 * piston.accel_m_s2 - c.n3 * x2 + d_f_rate + inp.force_accel_dist_n_per_s2;
         let lumped_d = dx2 - self.nominal.force_accel(out.valve_command, &y);
-        Eval { dx, out, x2, lumped_d, force_limited }
+        Eval {
+            dx,
+            out,
+            x2,
+            lumped_d,
+            force_limited,
+        }
     }
 
     /// Clamp the states that sit against hard stops after a step.
@@ -295,7 +321,12 @@ impl Model<'_> {
             0 => "load_force_n".into(),
             1 => "spool_m".into(),
             2 => "accel_disturbance_integral_n_per_s".into(),
-            _ => self.controller.state_names().get(i - NH).cloned().unwrap_or_else(|| format!("x{i}")),
+            _ => self
+                .controller
+                .state_names()
+                .get(i - NH)
+                .cloned()
+                .unwrap_or_else(|| format!("x{i}")),
         }
     }
 }
@@ -309,10 +340,25 @@ fn build_plant(s: &Scenario) -> Result<Box<dyn Plant>> {
 /// Build the controller a scenario asks for, with its nominal model.
 pub fn build_controller(s: &Scenario) -> (Box<dyn Controller>, NominalModel) {
     let f = &s.file;
-    let nominal = NominalModel { c: f.controller.nominal.apply(&f.hydraulics).coefficients() };
-    let gains =
-        ControllerGains { gamma: f.controller.gamma, k: f.controller.k, delta: f.controller.delta, zeta: f.controller.zeta };
-    (control::build(f.controller.kind, nominal, &gains, &f.controller.rbf, &f.controller.observer), nominal)
+    let nominal = NominalModel {
+        c: f.controller.nominal.apply(&f.hydraulics).coefficients(),
+    };
+    let gains = ControllerGains {
+        gamma: f.controller.gamma,
+        k: f.controller.k,
+        delta: f.controller.delta,
+        zeta: f.controller.zeta,
+    };
+    (
+        control::build(
+            f.controller.kind,
+            nominal,
+            &gains,
+            &f.controller.rbf,
+            &f.controller.observer,
+        ),
+        nominal,
+    )
 }
 
 /// Run a validated scenario to the end.
@@ -348,8 +394,11 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
     let mut plant = build_plant(scenario)?;
     let dt = f.sim.dt_s;
     let steps = scenario.steps();
-    let sample_every =
-        if f.controller.sample_period_s > 0.0 { Some((f.controller.sample_period_s / dt).round() as usize) } else { None };
+    let sample_every = if f.controller.sample_period_s > 0.0 {
+        Some((f.controller.sample_period_s / dt).round() as usize)
+    } else {
+        None
+    };
     let mut sensors = sample_every.map(|_| SampledSensors::new(&f.sensors, f.controller.sample_period_s, f.seed));
 
     // Initial state: F_L(0) = 0, spool centred, controller initialised from the first reading.
@@ -383,7 +432,8 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         rec.friction_force_n.push(model.friction.force_n(p.velocity_m_s));
         rec.cylinder_force_n.push(model.cylinder_force(x, p.velocity_m_s, &r));
         rec.interaction_force.push(w1);
-        rec.disturbance_estimate_n_per_s2.push(e.out.disturbance_estimate_n_per_s2);
+        rec.disturbance_estimate_n_per_s2
+            .push(e.out.disturbance_estimate_n_per_s2);
         rec.rbf_output_n_per_s2.push(e.out.rbf_output_n_per_s2);
         rec.lumped_disturbance_n_per_s2.push(e.lumped_d);
         extra.clear();
@@ -401,7 +451,9 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
                 let y = sens.sample(&model.truth(&x, e.x2, plant.as_ref(), t));
                 let r = model.reference_at(t);
                 held = model.limit(model.controller.output(t, &r, &y, &x[NH..NH + ns]));
-                model.controller.discrete_update(t, f.controller.sample_period_s, &r, &y, &mut x[NH..NH + ns], &held);
+                model
+                    .controller
+                    .discrete_update(t, f.controller.sample_period_s, &r, &y, &mut x[NH..NH + ns], &held);
             }
         }
         let hold = sample_every.map(|_| held);
@@ -416,7 +468,10 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
             record(0.0, &x, &e0, w1, &mut rec, plant.as_ref());
         }
         let p_ref = plant.as_ref();
-        x = f.sim.integrator.step(t, dt, &x, |tau, xs| model.eval(tau, xs, p_ref, hold.as_ref()).dx);
+        x = f
+            .sim
+            .integrator
+            .step(t, dt, &x, |tau, xs| model.eval(tau, xs, p_ref, hold.as_ref()).dx);
         let v = plant.piston_at(t).velocity_m_s;
         let inputs = PlantInputs {
             cylinder_force_n: model.cylinder_force(&x, v, &r0),
@@ -426,7 +481,11 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         x[0] -= model.coeffs.n2 * miss;
         model.clamp(&mut x);
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-            return Err(Error::Diverged { time_s: t + dt, state: model.state_name(i), value: x[i] });
+            return Err(Error::Diverged {
+                time_s: t + dt,
+                state: model.state_name(i),
+                value: x[i],
+            });
         }
         let t1 = (k + 1) as f64 * dt;
         let e = model.eval(t1, &x, plant.as_ref(), hold.as_ref());

@@ -3,6 +3,9 @@
 //! Each reference gives its value and its first and second time derivatives analytically
 //! (the ZNN and ERL-SMC laws need `x_d`, `dx_d/dt`, `d^2x_d/dt^2`).
 
+mod gait;
+pub use gait::*;
+
 use serde::Serialize;
 
 /// A reference value and its first two time derivatives at one instant.

@@ -182,7 +182,10 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     c.non_negative("actuator.valve_command_limit", f.actuator.valve_command_limit)?;
     c.non_negative("actuator.spool_limit_m", f.actuator.spool_limit_m)?;
     if f.actuator.mode != ActuatorMode::Hydraulic && f.plant.kind == PlantKind::Bench {
-        return Err(c.fail("actuator.mode", "`force` and `free` drive a leg; the bench has no mechanics to drive"));
+        return Err(c.fail(
+            "actuator.mode",
+            "`force` and `free` drive a leg; the bench has no mechanics to drive",
+        ));
     }
     signal(&c, "disturbance.force_rate", &f.disturbance.force_rate)?;
     signal(&c, "disturbance.force_accel", &f.disturbance.force_accel)?;
