@@ -15,6 +15,7 @@ pub mod error;
 pub mod human;
 pub mod hydraulics;
 pub mod integrator;
+pub mod leg;
 pub mod metrics;
 pub mod output;
 pub mod plant;

@@ -34,13 +34,14 @@ use crate::hydraulics::{
     ActuatorMode, ActuatorParams, Coefficients, ForceChannelInput, ForceChannelState, ForceSource, FrictionParams,
 };
 use crate::metrics::{self, Summary};
-use crate::plant::{Bench, Plant, PlantInputs, PlantKind};
+use crate::plant::{Bench, LegPlant, PistonMotion, PistonPredictor, Plant, PlantInputs, PlantKind};
 use crate::reference::{RefSample, Sine};
 use crate::scenario::{ReferenceKind, Scenario};
 use crate::sensors::{SampledSensors, Truth};
 
-/// Hydraulic states in the integrated vector: F_L, x_v, r.
-const NH: usize = 3;
+/// Plant-side states in the integrated vector: F_L, x_v, r, and the predicted piston
+/// position and velocity inside the step (leg plant; unused for a prescribed piston).
+const NH: usize = 5;
 /// Length of the integrated state vector.
 const NX: usize = NH + MAX_CONTROLLER_STATES;
 type X = [f64; NX];
@@ -246,9 +247,36 @@ impl Model<'_> {
         }
     }
 
-    /// Evaluate the continuous dynamics at (t, x). `held` is the sampled-mode output.
-    fn eval(&self, t: f64, x: &X, plant: &dyn Plant, held: Option<&ControlOutput>) -> Eval {
-        let piston = plant.piston_at(t);
+    /// Piston motion at a stage: prescribed by the plant, or from the predictor states.
+    fn piston(&self, t: f64, x: &X, plant: &dyn Plant, pred: Option<&PistonPredictor>) -> PistonMotion {
+        match pred {
+            None => plant.piston_at(t),
+            Some(p) => {
+                // Predictor states: x[3] position, x[4] velocity v. The force ODE sees the
+                // plant integrator's effective velocity v + a*lead (see PistonPredictor).
+                let v = x[4];
+                let a = p.free_accel_m_s2 + (x[0] - self.friction.force_n(v)) / p.effective_mass_kg;
+                let v_eff = v + (a - p.lead_exempt_accel_m_s2) * p.velocity_lead_s;
+                PistonMotion {
+                    position_m: x[3],
+                    velocity_m_s: v_eff,
+                    accel_m_s2: a,
+                }
+            }
+        }
+    }
+
+    /// Evaluate the continuous dynamics at (t, x). `held` is the sampled-mode output;
+    /// `pred` the leg's piston predictor for this step (None: piston from `plant.piston_at`).
+    fn eval(
+        &self,
+        t: f64,
+        x: &X,
+        plant: &dyn Plant,
+        held: Option<&ControlOutput>,
+        pred: Option<&PistonPredictor>,
+    ) -> Eval {
+        let piston = self.piston(t, x, plant, pred);
         let h = ForceChannelState {
             force_n: x[0],
             spool_m: x[1],
@@ -256,7 +284,26 @@ impl Model<'_> {
         };
         let r = self.reference_at(t);
         let (mut inp, x2, d_f_rate) = self.environment(t, &h, piston.velocity_m_s, &r);
-        let y = self.truth(x, x2, plant, t).ideal();
+        // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
+        // da/dt = (dF_L/dt - F_f'(v)*a)/m_eff: that is the piston acceleration the force ODE
+        // experiences, so it is what an ideal sensor reports.
+        let mut piston = piston;
+        let v_state = x[4];
+        if let Some(p) = pred {
+            let a = piston.accel_m_s2;
+            let a_dot = (x2 - self.friction.slope_n_s_per_m(v_state) * a) / p.effective_mass_kg;
+            piston.accel_m_s2 = a + p.velocity_lead_s * a_dot;
+        }
+        let y = Truth {
+            force_n: h.force_n,
+            force_rate_n_per_s: x2,
+            spool_m: h.spool_m,
+            piston_m: piston.position_m,
+            piston_velocity_m_s: piston.velocity_m_s,
+            piston_accel_m_s2: piston.accel_m_s2,
+            knee_rad: plant.knee_rad(),
+        }
+        .ideal();
         let mut dx = [0.0; NX];
         let out = match held {
             Some(o) => *o,
@@ -272,6 +319,10 @@ impl Model<'_> {
         dx[0] = dh.force_n;
         dx[1] = dh.spool_m;
         dx[2] = dh.accel_dist_n_per_s;
+        if let Some(p) = pred {
+            dx[3] = piston.velocity_m_s;
+            dx[4] = p.free_accel_m_s2 + (x[0] - self.friction.force_n(v_state)) / p.effective_mass_kg;
+        }
         // Hard stops: spool travel and the supply-pressure force bounds.
         let sl = self.act.spool_limit_m;
         if sl > 0.0 && x[1].abs() >= sl && dx[1] * x[1] > 0.0 {
@@ -321,6 +372,8 @@ impl Model<'_> {
             0 => "load_force_n".into(),
             1 => "spool_m".into(),
             2 => "accel_disturbance_integral_n_per_s".into(),
+            3 => "predicted_piston_m".into(),
+            4 => "predicted_piston_velocity_m_s".into(),
             _ => self
                 .controller
                 .state_names()
@@ -332,8 +385,19 @@ impl Model<'_> {
 }
 
 fn build_plant(s: &Scenario) -> Result<Box<dyn Plant>> {
-    Ok(match s.file.plant.kind {
-        PlantKind::Bench => Box::new(Bench::new(s.file.bench.clone())),
+    let f = &s.file;
+    Ok(match f.plant.kind {
+        PlantKind::Bench => Box::new(Bench::new(f.bench.clone())),
+        PlantKind::Leg => {
+            let model = f.leg.load_model(&s.source_name, s.base_dir.as_deref())?;
+            Box::new(LegPlant::new(
+                model,
+                &f.leg,
+                f.sim.dt_s,
+                f.human.cuff_xyz,
+                &s.source_name,
+            )?)
+        }
     })
 }
 
@@ -401,14 +465,9 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
     };
     let mut sensors = sample_every.map(|_| SampledSensors::new(&f.sensors, f.controller.sample_period_s, f.seed));
 
-    // Initial state: F_L(0) = 0, spool centred, controller initialised from the first reading.
+    // Initial state: F_L(0) = 0, spool centred; the controller is initialised from the first
+    // reading inside the loop (after the piston predictor has set the piston states).
     let mut x: X = [0.0; NX];
-    {
-        let r0 = model.reference_at(0.0);
-        let e0 = model.eval(0.0, &x, plant.as_ref(), Some(&ControlOutput::default()));
-        let y0: Measurement = model.truth(&x, e0.x2, plant.as_ref(), 0.0).ideal();
-        model.controller.init(&y0, &r0, &mut x[NH..]);
-    }
     let ns = model.controller.state_len();
     let mut held = ControlOutput::default();
     let mut rec = Record::with_capacity(steps + 1, plant.extra_names());
@@ -443,42 +502,67 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         }
     };
 
+    let hydraulic = model.act.mode == ActuatorMode::Hydraulic;
+    let mut last_w1 = 0.0;
     for k in 0..steps {
         let t = k as f64 * dt;
+        let r0 = model.reference_at(t);
+        // The leg's local piston model for this step (None for a prescribed piston).
+        let pred = if hydraulic { plant.piston_predictor() } else { None };
+        if let Some(p) = &pred {
+            x[3] = p.position_m;
+            x[4] = p.velocity_m_s;
+        }
+        if k == 0 {
+            let e = model.eval(0.0, &x, plant.as_ref(), Some(&ControlOutput::default()), pred.as_ref());
+            let y0: Measurement = model.truth(&x, e.x2, plant.as_ref(), 0.0).ideal();
+            model.controller.init(&y0, &r0, &mut x[NH..]);
+        }
         if let (Some(m), Some(sens)) = (sample_every, sensors.as_mut()) {
             if k % m == 0 {
-                let e = model.eval(t, &x, plant.as_ref(), Some(&held));
+                let e = model.eval(t, &x, plant.as_ref(), Some(&held), pred.as_ref());
                 let y = sens.sample(&model.truth(&x, e.x2, plant.as_ref(), t));
-                let r = model.reference_at(t);
-                held = model.limit(model.controller.output(t, &r, &y, &x[NH..NH + ns]));
+                held = model.limit(model.controller.output(t, &r0, &y, &x[NH..NH + ns]));
+                let ts = f.controller.sample_period_s;
                 model
                     .controller
-                    .discrete_update(t, f.controller.sample_period_s, &r, &y, &mut x[NH..NH + ns], &held);
+                    .discrete_update(t, ts, &r0, &y, &mut x[NH..NH + ns], &held);
             }
         }
         let hold = sample_every.map(|_| held);
-        let e0 = model.eval(t, &x, plant.as_ref(), hold.as_ref());
-        let r0 = model.reference_at(t);
+        let e0 = model.eval(t, &x, plant.as_ref(), hold.as_ref(), pred.as_ref());
         let w1 = match model.human.mode {
-            HumanMode::Cuff => model.human.interaction(x[0] - r0.value, e0.x2 - r0.rate),
-            HumanMode::Paper => model.human.interaction(x[0] - r0.value, e0.x2 - r0.rate),
+            HumanMode::Cuff | HumanMode::Paper => model.human.interaction(x[0] - r0.value, e0.x2 - r0.rate),
             HumanMode::Off => 0.0,
         };
-        if k == 0 {
-            record(0.0, &x, &e0, w1, &mut rec, plant.as_ref());
-        }
+        record(t, &x, &e0, w1, &mut rec, plant.as_ref());
         let p_ref = plant.as_ref();
-        x = f
-            .sim
-            .integrator
-            .step(t, dt, &x, |tau, xs| model.eval(tau, xs, p_ref, hold.as_ref()).dx);
-        let v = plant.piston_at(t).velocity_m_s;
+        let v0 = plant.piston_at(t).velocity_m_s;
+        let x_start = x;
+        if hydraulic {
+            x = f.sim.integrator.step(t, dt, &x, |tau, xs| {
+                model.eval(tau, xs, p_ref, hold.as_ref(), pred.as_ref()).dx
+            });
+        }
+        // The force the mechanics get over the step: with a predictor, the impulse-average
+        // force the predictor integrated; otherwise the force at the step start.
+        let cylinder_force_n = match &pred {
+            Some(p) => p.effective_mass_kg * ((x[4] - x_start[4]) / dt - p.free_accel_m_s2),
+            None => model.cylinder_force(&x_start, v0, &r0),
+        };
         let inputs = PlantInputs {
-            cylinder_force_n: model.cylinder_force(&x, v, &r0),
+            cylinder_force_n,
             cuff_force_n: if model.human.mode == HumanMode::Cuff { w1 } else { 0.0 },
         };
-        let miss = plant.advance(t, dt, &inputs)?;
-        x[0] -= model.coeffs.n2 * miss;
+        let stroke = plant.advance(t, dt, &inputs)?;
+        if hydraulic {
+            // Stroke the force ODE did not see: the oil spring acts on the geometric change.
+            let seen = match &pred {
+                Some(_) => x[3] - x_start[3],
+                None => plant.piston_at(t + dt).position_m - plant.piston_at(t).position_m,
+            };
+            x[0] -= model.coeffs.n2 * (stroke - seen);
+        }
         model.clamp(&mut x);
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
             return Err(Error::Diverged {
@@ -487,10 +571,17 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
                 value: x[i],
             });
         }
-        let t1 = (k + 1) as f64 * dt;
-        let e = model.eval(t1, &x, plant.as_ref(), hold.as_ref());
-        record(t1, &x, &e, w1, &mut rec, plant.as_ref());
+        last_w1 = w1;
     }
+    // The final row, evaluated the way the next step would see it.
+    let t_end = steps as f64 * dt;
+    let pred = if hydraulic { plant.piston_predictor() } else { None };
+    if let Some(p) = &pred {
+        x[3] = p.position_m;
+        x[4] = p.velocity_m_s;
+    }
+    let e = model.eval(t_end, &x, plant.as_ref(), sample_every.map(|_| &held), pred.as_ref());
+    record(t_end, &x, &e, last_w1, &mut rec, plant.as_ref());
     let wall = start.elapsed().as_secs_f64();
     let summary = metrics::summarise(scenario, &rec, wall);
     Ok(RunOutput { record: rec, summary })

@@ -6,8 +6,7 @@ use exoleg::Scenario;
 
 #[test]
 fn arbfnn_fdo_znn_max_errors_within_half_percent_and_erl_smc_worse() {
-    let base = Scenario::load(None, &[]).unwrap();
-    assert_eq!(base.file.plant.kind, exoleg::plant::PlantKind::Bench);
+    let base = Scenario::load(None, &["plant.kind=\"bench\"".into()]).unwrap();
     let res = run_cases(&base, &[]).unwrap();
     assert_eq!(res.len(), PAPER_CASES.len());
     for r in &res {
@@ -41,6 +40,7 @@ fn plain_znn_without_disturbance_follows_the_critically_damped_error_law() {
         let s = exoleg::Scenario::load(
             None,
             &[
+                "plant.kind=\"bench\"".into(),
                 "controller.kind=\"znn\"".into(),
                 format!("controller.gamma={gamma:?}"),
                 format!("reference.frequency_hz={f_hz:?}"),

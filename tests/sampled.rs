@@ -45,5 +45,6 @@ fn arbfnn_fdo_znn_at_1khz_with_differenced_load_cell_is_unstable() {
 #[test]
 fn sample_period_must_be_a_multiple_of_dt() {
     let e = exoleg::Scenario::load(None, &["controller.sample_period_s=0.0015".into()]).unwrap_err();
+    assert_eq!(e.exit_code(), 2);
     assert!(e.to_string().contains("controller.sample_period_s"), "{e}");
 }

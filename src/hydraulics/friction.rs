@@ -20,7 +20,7 @@ pub struct FrictionParams {
     pub stribeck_velocity_m_s: f64,
     /// Viscous coefficient mu (N s/m). Default 10000 (paper Table 1). >= 0.
     pub viscous_n_s_per_m: f64,
-    /// Smoothing velocity eps of the smooth sign tanh(v/eps) (m/s). Default 1e-4. > 0.
+    /// Smoothing velocity eps of the smooth sign tanh(v/eps) (m/s). Default 1e-3 (well below v_s; smaller makes the friction stiff for a 1 ms step). > 0.
     pub smoothing_velocity_m_s: f64,
 }
 
@@ -31,7 +31,7 @@ impl Default for FrictionParams {
             static_n: 6.0,
             stribeck_velocity_m_s: 0.01,
             viscous_n_s_per_m: 10_000.0,
-            smoothing_velocity_m_s: 1e-4,
+            smoothing_velocity_m_s: 1e-3,
         }
     }
 }
@@ -42,5 +42,30 @@ impl FrictionParams {
         let s = (v_m_s / self.stribeck_velocity_m_s).powi(2);
         let level = self.coulomb_n + (self.static_n - self.coulomb_n) * (-s).exp();
         level * (v_m_s / self.smoothing_velocity_m_s).tanh() + self.viscous_n_s_per_m * v_m_s
+    }
+
+    /// d F_f / d v (N s/m), analytic.
+    pub fn slope_n_s_per_m(&self, v_m_s: f64) -> f64 {
+        let (vs, eps) = (self.stribeck_velocity_m_s, self.smoothing_velocity_m_s);
+        let e = (-(v_m_s / vs).powi(2)).exp();
+        let level = self.coulomb_n + (self.static_n - self.coulomb_n) * e;
+        let dlevel = (self.static_n - self.coulomb_n) * e * (-2.0 * v_m_s / (vs * vs));
+        let th = (v_m_s / eps).tanh();
+        dlevel * th + level * (1.0 - th * th) / eps + self.viscous_n_s_per_m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slope_matches_finite_difference() {
+        let f = FrictionParams::default();
+        for v in [-0.05, -1e-3, -5e-5, 0.0, 3e-5, 2e-3, 0.02] {
+            let h = 1e-8;
+            let fd = (f.force_n(v + h) - f.force_n(v - h)) / (2.0 * h);
+            assert!((fd - f.slope_n_s_per_m(v)).abs() < 1e-4 * fd.abs().max(1.0), "v={v}");
+        }
     }
 }

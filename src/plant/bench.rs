@@ -65,7 +65,7 @@ impl Plant for Bench {
         }
     }
 
-    fn advance(&mut self, _t_s: f64, _dt_s: f64, _inputs: &PlantInputs) -> Result<f64> {
-        Ok(0.0)
+    fn advance(&mut self, t_s: f64, dt_s: f64, _inputs: &PlantInputs) -> Result<f64> {
+        Ok(self.piston_at(t_s + dt_s).position_m - self.piston_at(t_s).position_m)
     }
 }

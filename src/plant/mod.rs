@@ -4,7 +4,9 @@
 //! plant supplies the piston motion it needs and takes the resulting cylinder force.
 
 mod bench;
+mod leg;
 pub use bench::*;
+pub use leg::*;
 
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
@@ -15,6 +17,8 @@ use serde::{Deserialize, Serialize};
 pub enum PlantKind {
     /// The cylinder on a force-loading test bench with prescribed piston motion.
     Bench,
+    /// The URDF leg in Rapier, driven through the cylinder in its closed loop.
+    Leg,
 }
 
 /// Piston (cylinder length) motion at one instant. Positive = cylinder lengthening.
@@ -26,6 +30,32 @@ pub struct PistonMotion {
     pub velocity_m_s: f64,
     /// Piston acceleration xc_ddot (m/s^2).
     pub accel_m_s2: f64,
+}
+
+/// A local model of the piston for one step, for plants whose piston motion responds to the
+/// cylinder force (the leg): `xc_ddot(tau) = free_accel + cylinder_force(tau) / effective_mass`,
+/// starting from `position_m`, `velocity_m_s`. The loop integrates it together with the
+/// force ODE, so the hydraulics and the controller see a piston that reacts to the force
+/// inside the step; the plant then takes the step's impulse-average force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PistonPredictor {
+    /// Piston position at the step start (m).
+    pub position_m: f64,
+    /// Piston velocity at the step start (m/s).
+    pub velocity_m_s: f64,
+    /// Acceleration with zero cylinder force (gravity, velocity terms, human, hip) (m/s^2).
+    pub free_accel_m_s2: f64,
+    /// Effective mass of the mechanics reflected to the cylinder axis (kg).
+    pub effective_mass_kg: f64,
+    /// Lead (s) of the position update of the plant's integrator: a scheme that advances
+    /// velocity then position in `n` substeps of `dt/n` moves `v0*dt + a*dt^2*(n+1)/(2n)`,
+    /// i.e. as if the velocity were `v + a*dt/(2n)`. The predictor's piston velocity includes
+    /// this lead so its stroke matches the plant's to second order.
+    pub velocity_lead_s: f64,
+    /// Part of the acceleration that is not integrated with that lead (m/s^2): for a piston
+    /// driven through a joint, `d(dL/dq)/dq * qdot^2`, the curvature of the stroke in the
+    /// joint coordinate the plant integrates.
+    pub lead_exempt_accel_m_s2: f64,
 }
 
 /// What the loop applies to the plant over one step.
@@ -41,16 +71,19 @@ pub struct PlantInputs {
 
 /// A plant as the co-simulation loop sees it.
 pub trait Plant: Send {
-    /// Piston motion at time `t_s` inside the step that is about to be taken.
+    /// Piston motion at time `t_s`: prescribed (bench) or the state at the step start (leg).
     fn piston_at(&self, t_s: f64) -> PistonMotion;
+    /// The local piston model for the next step, for plants whose piston responds to force.
+    /// `None` (default): the motion is prescribed by [`Plant::piston_at`].
+    fn piston_predictor(&self) -> Option<PistonPredictor> {
+        None
+    }
     /// Knee angle (rad), 0 for plants without a knee.
     fn knee_rad(&self) -> f64 {
         0.0
     }
-    /// Advance the mechanics from `t_s` to `t_s + dt_s`. Returns the piston displacement over
-    /// the step that the force ODE did not see (m): the actual change of cylinder length minus
-    /// the change implied by [`Plant::piston_at`] during the step. The loop adds `-n2` times it
-    /// to the load force, so the oil spring sees the geometric stroke exactly.
+    /// Advance the mechanics from `t_s` to `t_s + dt_s` under a force constant over the step.
+    /// Returns the change of cylinder length over the step (m), measured geometrically.
     fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64>;
     /// Names (with units) of plant-specific recorded columns.
     fn extra_names(&self) -> Vec<&'static str> {

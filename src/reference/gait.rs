@@ -59,8 +59,9 @@ fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
         for r in c + 1..n {
             let f = a[r][c] / a[c][c];
             if f != 0.0 {
-                for k in c..n {
-                    a[r][k] -= f * a[c][k];
+                let (top, bottom) = a.split_at_mut(r);
+                for (x, y) in bottom[0][c..].iter_mut().zip(&top[c][c..]) {
+                    *x -= f * y;
                 }
                 b[r] -= f * b[c];
             }

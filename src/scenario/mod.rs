@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::human::HumanParams;
 use crate::hydraulics::{ActuatorParams, FrictionParams, HydraulicParams};
 use crate::integrator::Integrator;
-use crate::plant::{BenchParams, PlantKind};
+use crate::plant::{BenchParams, LegParams, PlantKind};
 use crate::sensors::SensorParams;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -49,13 +49,13 @@ impl Default for SimSection {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PlantSection {
-    /// `bench`. Default `bench`.
+    /// `leg` (default: the URDF leg in Rapier) or `bench` (force-loading rig).
     pub kind: PlantKind,
 }
 
 impl Default for PlantSection {
     fn default() -> Self {
-        Self { kind: PlantKind::Bench }
+        Self { kind: PlantKind::Leg }
     }
 }
 
@@ -205,6 +205,8 @@ pub struct ScenarioFile {
     pub plant: PlantSection,
     /// Bench plant settings.
     pub bench: BenchParams,
+    /// Leg plant settings.
+    pub leg: LegParams,
     /// Valve and cylinder.
     pub hydraulics: HydraulicParams,
     /// Piston friction.
@@ -232,6 +234,7 @@ impl Default for ScenarioFile {
             sim: SimSection::default(),
             plant: PlantSection::default(),
             bench: BenchParams::default(),
+            leg: LegParams::default(),
             hydraulics: HydraulicParams::default(),
             friction: FrictionParams::default(),
             actuator: ActuatorParams::default(),
@@ -250,6 +253,8 @@ impl Default for ScenarioFile {
 pub struct Scenario {
     /// Where it came from (file path or the embedded default's name).
     pub source_name: String,
+    /// Directory of the scenario file, for relative paths inside it (None for the embedded one).
+    pub base_dir: Option<std::path::PathBuf>,
     /// The resolved values.
     pub file: ScenarioFile,
 }
@@ -278,7 +283,8 @@ impl Scenario {
                 (name, table)
             }
         };
-        Self::from_table(name, table, sets)
+        let base = path.and_then(|p| p.parent()).map(|d| d.to_path_buf());
+        Self::from_table(name, table, sets).map(|s| Scenario { base_dir: base, ..s })
     }
 
     /// Parse scenario text (TOML) with a name for error messages, apply overrides, validate.
@@ -305,6 +311,7 @@ impl Scenario {
         validate::validate(&source, &file)?;
         Ok(Scenario {
             source_name: source,
+            base_dir: None,
             file,
         })
     }
@@ -315,7 +322,11 @@ impl Scenario {
             Ok(toml::Value::Table(t)) => t,
             _ => return Err(Error::input(&self.source_name, "", "cannot re-serialise scenario")),
         };
-        Self::from_table(self.source_name.clone(), table, sets)
+        let s = Self::from_table(self.source_name.clone(), table, sets)?;
+        Ok(Scenario {
+            base_dir: self.base_dir.clone(),
+            ..s
+        })
     }
 
     /// Convergence band (N): the scenario's, or 1% of the reference amplitude.

@@ -191,6 +191,12 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     signal(&c, "disturbance.force_accel", &f.disturbance.force_accel)?;
     signal(&c, "disturbance.spool", &f.disturbance.spool)?;
 
+    if !(1..=64).contains(&f.leg.solver_iterations) {
+        return Err(c.fail(
+            "leg.solver_iterations",
+            format!("must be 1..=64, got {}", f.leg.solver_iterations),
+        ));
+    }
     if f.human.mode == HumanMode::Cuff && f.plant.kind == PlantKind::Bench {
         return Err(c.fail(
             "human.mode",

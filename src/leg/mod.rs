@@ -1,0 +1,26 @@
+//! Sagittal-plane leg + knee-exoskeleton hydraulic cylinder model.
+//!
+//! * [`LegModel`]: immutable model loaded from a URDF with two extension elements
+//!   (`<loop_closure>` and `<hydraulic_actuator>`), validated, with the planar loop geometry.
+//! * [`Leg`]: Rapier 0.36 (f64) simulation of that model (multibody tree + impulse-joint loop
+//!   closure).
+//! * [`geometry`]: Rapier-independent helpers (cylinder length, moment arm, gravity torque,
+//!   holding force, reduced generalized inertia) for tests and inverse dynamics.
+//!
+//! Units are SI (m, kg, s, rad, N, N m, J). Conventions: z up, person faces +x, sagittal plane
+//! x-z, knee angle positive in flexion (the foot moves to -x), actuator force positive when it
+//! lengthens the cylinder, gravity 9.81 m/s^2 along -z.
+
+pub mod error;
+pub mod geometry;
+pub mod model;
+pub mod planar;
+pub mod sim;
+
+pub use error::LegError;
+pub use geometry::{
+    cylinder_length_at, generalized_inertia_at, gravity_torque_at, holding_force_at, link_poses_at, loop_pose_at,
+    moment_arm_at, potential_energy_at, reduced_acceleration,
+};
+pub use model::{ActuatorSpec, JointKind, JointSpec, LegModel, LinkSpec, LoopClosureSpec, LoopPose};
+pub use sim::{Leg, LegSolverParams};

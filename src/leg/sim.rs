@@ -1,0 +1,459 @@
+//! Rapier (f64) simulation of the leg + cylinder closed loop.
+//!
+//! Structure: one reduced-coordinate multibody tree (thigh = fixed root; knee, barrel pivot and
+//! rod slide as multibody joints, fixed joints welded in) plus one impulse joint (spherical) that
+//! closes the loop at the rod end. No colliders: mass properties come from the URDF `<inertial>`
+//! only. Gravity is -9.81 m/s^2 along z.
+
+use rapier3d_f64::glamx::{DQuat, DVec3, EulerRot};
+use rapier3d_f64::math::{Pose, Vector};
+use rapier3d_f64::prelude::{
+    GenericJoint, GenericJointBuilder, ImpulseJointHandle, IntegrationParameters, JointAxesMask, MassProperties,
+    MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SphericalJointBuilder,
+};
+
+use super::error::LegError;
+use super::model::{JointKind, JointSpec, LegModel, GRAVITY_M_S2};
+
+/// Solver settings of [`Leg`].
+#[derive(Clone, Copy, Debug)]
+pub struct LegSolverParams {
+    /// Rapier `num_solver_iterations` (default 4).
+    pub solver_iterations: usize,
+    /// Rapier `num_internal_pgs_iterations` (default 1).
+    pub pgs_iterations: usize,
+}
+
+impl Default for LegSolverParams {
+    fn default() -> Self {
+        Self {
+            solver_iterations: 4,
+            pgs_iterations: 1,
+        }
+    }
+}
+
+/// A running simulation of a [`LegModel`]. Owns all Rapier sets and the pipeline.
+pub struct Leg {
+    model: LegModel,
+    world: PhysicsWorld,
+    /// Rapier body carrying each URDF link (same indexing as `LegModel::links`). Links welded
+    /// by fixed joints share their parent's body.
+    link_body: Vec<RigidBodyHandle>,
+    /// Pose of each URDF link in the frame of its Rapier body (identity unless welded).
+    link_offset: Vec<Pose>,
+    /// Distinct Rapier bodies.
+    bodies: Vec<RigidBodyHandle>,
+    mb: MultibodyIndex,
+    knee_link: usize,
+    rod_link: usize,
+    barrel_link: usize,
+    closure: ImpulseJointHandle,
+    anchor1: DVec3,
+    anchor2: DVec3,
+    rod_anchor_is_1: bool,
+    dt: f64,
+    time: f64,
+    last_dl: f64,
+    last_dknee: f64,
+}
+
+fn pose3(xyz: [f64; 3], rpy: [f64; 3]) -> Pose {
+    Pose::from_parts(
+        DVec3::from(xyz),
+        DQuat::from_euler(EulerRot::ZYX, rpy[2], rpy[1], rpy[0]),
+    )
+}
+
+/// URDF joint -> Rapier generic joint. The Rapier joint frame's X axis is aligned with the URDF
+/// axis, so the Rapier coordinate equals the URDF coordinate (same sign).
+fn to_generic(j: &JointSpec) -> GenericJoint {
+    let origin = pose3(j.origin_xyz, j.origin_rpy);
+    let axis = DVec3::from(j.axis);
+    let align = Pose::from_rotation(DQuat::from_rotation_arc(DVec3::X, axis));
+    let mask = match j.kind {
+        JointKind::Revolute | JointKind::Continuous => JointAxesMask::LOCKED_REVOLUTE_AXES,
+        JointKind::Prismatic => JointAxesMask::LOCKED_PRISMATIC_AXES,
+        JointKind::Fixed => JointAxesMask::LOCKED_FIXED_AXES,
+    };
+    GenericJointBuilder::new(mask)
+        .local_frame1(origin * align)
+        .local_frame2(align)
+        .contacts_enabled(false)
+        .build()
+}
+
+/// Index of the single free coordinate in `MultibodyJoint::coords()` (LinX = 0, AngX = 3).
+fn coord_index(kind: JointKind) -> usize {
+    match kind {
+        JointKind::Prismatic => 0,
+        _ => 3,
+    }
+}
+
+impl Leg {
+    /// Builds the simulation at a knee angle (rad, flexion positive) with time step `dt_s` (s),
+    /// at rest. The barrel angle and the rod extension are solved from the loop geometry so that
+    /// the closure gap is zero at t = 0.
+    pub fn new(model: &LegModel, initial_knee_rad: f64, dt_s: f64) -> Result<Self, LegError> {
+        Self::with_params(model, initial_knee_rad, dt_s, LegSolverParams::default())
+    }
+
+    /// Like [`Leg::new`] with explicit solver settings.
+    pub fn with_params(
+        model: &LegModel,
+        initial_knee_rad: f64,
+        dt_s: f64,
+        params: LegSolverParams,
+    ) -> Result<Self, LegError> {
+        if !(dt_s.is_finite() && dt_s > 0.0) {
+            return Err(LegError::InvalidArgument(format!("dt_s must be > 0, got {dt_s}")));
+        }
+        if !initial_knee_rad.is_finite() {
+            return Err(LegError::InvalidArgument("initial knee angle is not finite".into()));
+        }
+        let sol = model.loop_solution_checked(initial_knee_rad)?;
+        let q = model.joint_coords(&sol);
+
+        let mut world = PhysicsWorld::new();
+        world.gravity = Vector::new(0.0, 0.0, -GRAVITY_M_S2);
+        world.integration_parameters = IntegrationParameters {
+            dt: dt_s,
+            num_solver_iterations: params.solver_iterations,
+            num_internal_pgs_iterations: params.pgs_iterations,
+            ..IntegrationParameters::default()
+        };
+
+        // 3D forward kinematics for the initial body poses.
+        let mut poses = vec![Pose::IDENTITY; model.links.len()];
+        for &ji in &model.topo_joints {
+            let j = &model.joints[ji];
+            let axis = DVec3::from(j.axis);
+            let motion = match j.kind {
+                JointKind::Revolute | JointKind::Continuous => Pose::from_rotation(DQuat::from_axis_angle(axis, q[ji])),
+                JointKind::Prismatic => Pose::from_translation(axis * q[ji]),
+                JointKind::Fixed => Pose::IDENTITY,
+            };
+            poses[j.child] = poses[j.parent] * pose3(j.origin_xyz, j.origin_rpy) * motion;
+        }
+
+        // Weld fixed-joint children into their parent body (fewer multibody links = faster):
+        // `anchor[l]` is the link whose Rapier body carries link `l`, `offset[l]` the pose of `l`
+        // in that body's frame.
+        let n = model.links.len();
+        let mut anchor: Vec<usize> = (0..n).collect();
+        let mut offset = vec![Pose::IDENTITY; n];
+        for &ji in &model.topo_joints {
+            let j = &model.joints[ji];
+            if j.kind == JointKind::Fixed {
+                anchor[j.child] = anchor[j.parent];
+                offset[j.child] = offset[j.parent] * pose3(j.origin_xyz, j.origin_rpy);
+            }
+        }
+        let mut handle_of_anchor: Vec<Option<RigidBodyHandle>> = vec![None; n];
+        let mut bodies = Vec::new();
+        for a in 0..n {
+            if anchor[a] != a {
+                continue;
+            }
+            let mut mp = MassProperties::default();
+            for (i, l) in model.links.iter().enumerate() {
+                if anchor[i] == a {
+                    let inertia = rapier3d_f64::math::Matrix::from_cols_array_2d(&l.inertia_kg_m2);
+                    mp += MassProperties::with_inertia_matrix(DVec3::from(l.com_m), l.mass_kg, inertia)
+                        .transform_by(&offset[i]);
+                }
+            }
+            let b = if a == model.root {
+                RigidBodyBuilder::fixed()
+            } else {
+                RigidBodyBuilder::dynamic()
+            };
+            let rb = b.pose(poses[a]).additional_mass_properties(mp).can_sleep(false).build();
+            let h = world.bodies.insert(rb);
+            handle_of_anchor[a] = Some(h);
+            bodies.push(h);
+        }
+        let link_body: Vec<RigidBodyHandle> = (0..n).map(|l| handle_of_anchor[anchor[l]].unwrap()).collect();
+
+        for &ji in &model.topo_joints {
+            let j = &model.joints[ji];
+            if j.kind == JointKind::Fixed {
+                continue;
+            }
+            let mut gj = to_generic(j);
+            let f1 = offset[j.parent] * gj.local_frame1;
+            gj.set_local_frame1(f1);
+            world
+                .multibody_joints
+                .insert(link_body[j.parent], link_body[j.child], gj, true)
+                .ok_or_else(|| LegError::Unsupported(format!("Rapier refused multibody joint '{}'", j.name)))?;
+        }
+
+        let c = &model.closure;
+        let anchor1 = DVec3::from(c.anchor1_m);
+        let anchor2 = DVec3::from(c.anchor2_m);
+        let sj = SphericalJointBuilder::new()
+            .local_anchor1(offset[c.link1] * anchor1)
+            .local_anchor2(offset[c.link2] * anchor2)
+            .contacts_enabled(false);
+        let closure = world
+            .impulse_joints
+            .insert(link_body[c.link1], link_body[c.link2], sj, true);
+        let rod_child = model.joints[model.rod].child;
+        let rod_anchor_is_1 = anchor[c.link1] == anchor[rod_child];
+
+        let link_id = |world: &PhysicsWorld, h: RigidBodyHandle| {
+            world.multibody_joints.rigid_body_link(h).map(|l| (l.multibody, l.id))
+        };
+        let (mb, _) = link_id(&world, link_body[model.root])
+            .ok_or_else(|| LegError::Unsupported("root is not part of a multibody".into()))?;
+        let knee_link = link_id(&world, link_body[model.joints[model.knee].child]).unwrap().1;
+        let barrel_link = link_id(&world, link_body[model.joints[model.barrel].child]).unwrap().1;
+        let rod_link = link_id(&world, link_body[rod_child]).unwrap().1;
+
+        let joint_links: Vec<(usize, usize)> = model
+            .topo_joints
+            .iter()
+            .filter(|&&ji| model.joints[ji].kind != JointKind::Fixed)
+            .map(|&ji| (ji, link_id(&world, link_body[model.joints[ji].child]).unwrap().1))
+            .collect();
+        {
+            let multibody = world.multibody_joints.get_multibody_mut(mb).unwrap();
+            // Resolves the fixed root (removes its 6 free DoFs) so that assembly ids are final.
+            multibody.forward_kinematics(&world.bodies, true);
+            let ndofs = multibody.ndofs();
+            let mut disp = vec![0.0; ndofs];
+            let mut damping = vec![0.0; ndofs];
+            for &(ji, lid) in &joint_links {
+                let j = &model.joints[ji];
+                let aid = multibody.link(lid).unwrap().assembly_id();
+                disp[aid] = q[ji];
+                damping[aid] = j.damping;
+            }
+            // Multibody joints start at coordinate 0: displace them to the loop solution.
+            multibody.apply_displacements(&disp);
+            // Remove Rapier's default 0.1 N m s/rad hinge damping; use the URDF's instead.
+            multibody.damping_mut().copy_from_slice(&damping);
+            multibody.generalized_velocity_mut().fill(0.0);
+            multibody.forward_kinematics(&world.bodies, false);
+            multibody.update_rigid_bodies(&mut world.bodies, true);
+        }
+
+        // Rapier applies the user-provided mass properties lazily, in the first pipeline step
+        // (before it, `mass() == 0` and `world_com` is the body origin, which would give
+        // `add_force_at_point` a wrong lever arm). A zero-dt step applies these user changes
+        // without moving anything.
+        world.integration_parameters.dt = 0.0;
+        world.step();
+        world.integration_parameters.dt = dt_s;
+
+        let leg = Leg {
+            model: model.clone(),
+            world,
+            link_body,
+            link_offset: offset,
+            bodies,
+            mb,
+            knee_link,
+            rod_link,
+            barrel_link,
+            closure,
+            anchor1,
+            anchor2,
+            rod_anchor_is_1,
+            dt: dt_s,
+            time: 0.0,
+            last_dl: 0.0,
+            last_dknee: 0.0,
+        };
+        Ok(leg)
+    }
+
+    /// The model this simulation was built from.
+    pub fn model(&self) -> &LegModel {
+        &self.model
+    }
+    /// Simulated time since construction, s.
+    pub fn time_s(&self) -> f64 {
+        self.time
+    }
+    /// Time step, s.
+    pub fn dt_s(&self) -> f64 {
+        self.dt
+    }
+
+    fn multibody(&self) -> &rapier3d_f64::prelude::Multibody {
+        self.world.multibody_joints.get_multibody(self.mb).unwrap()
+    }
+
+    fn coord(&self, link: usize, kind: JointKind) -> f64 {
+        self.multibody().link(link).unwrap().joint().coords()[coord_index(kind)]
+    }
+
+    fn gen_vel(&self, link: usize) -> f64 {
+        let mb = self.multibody();
+        mb.joint_velocity(mb.link(link).unwrap())[0]
+    }
+
+    /// Knee flexion angle (multibody coordinate), rad.
+    pub fn knee_angle_rad(&self) -> f64 {
+        self.coord(self.knee_link, self.model.joints[self.model.knee].kind)
+    }
+    /// Knee angular velocity (multibody generalized velocity after the last step), rad/s.
+    pub fn knee_velocity_rad_s(&self) -> f64 {
+        self.gen_vel(self.knee_link)
+    }
+    /// Change of the knee angle over the last step divided by dt, rad/s (geometric velocity).
+    pub fn knee_velocity_geometric_rad_s(&self) -> f64 {
+        self.last_dknee / self.dt
+    }
+    /// Barrel pivot joint angle, rad.
+    pub fn barrel_angle_rad(&self) -> f64 {
+        self.coord(self.barrel_link, self.model.joints[self.model.barrel].kind)
+    }
+    /// Prismatic (rod slide) coordinate, m.
+    pub fn rod_extension_m(&self) -> f64 {
+        self.coord(self.rod_link, JointKind::Prismatic)
+    }
+
+    fn world_point(&self, link: usize, local: DVec3) -> DVec3 {
+        self.world.bodies[self.link_body[link]].position() * (self.link_offset[link] * local)
+    }
+
+    fn rod_end_world(&self) -> DVec3 {
+        let c = &self.model.closure;
+        if self.rod_anchor_is_1 {
+            self.world_point(c.link1, self.anchor1)
+        } else {
+            self.world_point(c.link2, self.anchor2)
+        }
+    }
+
+    fn barrel_pivot_world(&self) -> DVec3 {
+        self.world_point(self.model.joints[self.model.barrel].child, DVec3::ZERO)
+    }
+
+    /// Measured pin-to-pin cylinder length (barrel pivot to the rod-side closure anchor), m.
+    pub fn cylinder_length_m(&self) -> f64 {
+        (self.rod_end_world() - self.barrel_pivot_world()).length()
+    }
+    /// Cylinder length change over the last step divided by dt, m/s (geometric, so it is
+    /// consistent with the positions after the constraint solver's corrections).
+    pub fn cylinder_velocity_m_s(&self) -> f64 {
+        self.last_dl / self.dt
+    }
+    /// Cylinder length change over the last step, m.
+    pub fn cylinder_length_change_m(&self) -> f64 {
+        self.last_dl
+    }
+    /// Distance between the two loop-closure anchor points in world, m.
+    pub fn loop_gap_m(&self) -> f64 {
+        let c = &self.model.closure;
+        (self.world_point(c.link1, self.anchor1) - self.world_point(c.link2, self.anchor2)).length()
+    }
+
+    /// World pose of a link (by index into `LegModel::links`).
+    pub fn link_pose(&self, link: usize) -> Pose {
+        *self.world.bodies[self.link_body[link]].position() * self.link_offset[link]
+    }
+
+    /// Advances by one step of `dt_s`: clears the user forces/torques of every body, applies
+    /// `actuator_force_n` (N, positive lengthens the cylinder) as an equal and opposite pair along
+    /// the pin-to-pin line (on the rod at its closure anchor, on the barrel at its pivot), plus an
+    /// optional external force `(point in shank frame [m], force in world [N])` on the knee child
+    /// (shank), then steps Rapier.
+    pub fn step(&mut self, actuator_force_n: f64, shank_force: Option<([f64; 3], [f64; 3])>) {
+        let l0 = self.cylinder_length_m();
+        let k0 = self.knee_angle_rad();
+        for &h in &self.bodies {
+            let rb = &mut self.world.bodies[h];
+            rb.reset_forces(false);
+            rb.reset_torques(false);
+        }
+        if actuator_force_n != 0.0 {
+            let pr = self.rod_end_world();
+            let pb = self.barrel_pivot_world();
+            let u = (pr - pb).normalize_or_zero();
+            let f = u * actuator_force_n;
+            let rod_body = if self.rod_anchor_is_1 {
+                self.model.closure.link1
+            } else {
+                self.model.closure.link2
+            };
+            self.world.bodies[self.link_body[rod_body]].add_force_at_point(f, pr, true);
+            let barrel_body = self.model.joints[self.model.barrel].child;
+            self.world.bodies[self.link_body[barrel_body]].add_force_at_point(-f, pb, true);
+        }
+        if let Some((p, f)) = shank_force {
+            let shank = self.model.joints[self.model.knee].child;
+            let pw = self.world_point(shank, DVec3::from(p));
+            self.world.bodies[self.link_body[shank]].add_force_at_point(DVec3::from(f), pw, true);
+        }
+        self.world.step();
+        self.time += self.dt;
+        self.last_dl = self.cylinder_length_m() - l0;
+        self.last_dknee = self.knee_angle_rad() - k0;
+    }
+
+    /// Kinetic energy of all links, J (from the multibody generalized velocities and body
+    /// Jacobians, so it is consistent with the solved velocities).
+    pub fn kinetic_energy_j(&self) -> f64 {
+        let mb = self.multibody();
+        let qd = mb.generalized_velocity();
+        let mut ke = 0.0;
+        for link in mb.links() {
+            let h = link.rigid_body_handle();
+            let rb = &self.world.bodies[h];
+            if !rb.is_dynamic() {
+                continue;
+            }
+            // Body Jacobian rows: linear velocity of the body's centre of mass, angular velocity.
+            let v = mb.body_jacobian(link.link_id()) * qd;
+            let lin = DVec3::new(v[0], v[1], v[2]);
+            let ang = DVec3::new(v[3], v[4], v[5]);
+            let cb = rb.center_of_mass();
+            for (li, l) in self.model.links.iter().enumerate() {
+                if self.link_body[li] != h {
+                    continue;
+                }
+                let pose = *rb.position() * self.link_offset[li];
+                let vl = lin + ang.cross(pose * DVec3::from(l.com_m) - cb);
+                let w = pose.rotation.inverse() * ang;
+                let i = &l.inertia_kg_m2;
+                let iw = DVec3::new(
+                    i[0][0] * w.x + i[0][1] * w.y + i[0][2] * w.z,
+                    i[1][0] * w.x + i[1][1] * w.y + i[1][2] * w.z,
+                    i[2][0] * w.x + i[2][1] * w.y + i[2][2] * w.z,
+                );
+                ke += 0.5 * l.mass_kg * vl.length_squared() + 0.5 * w.dot(iw);
+            }
+        }
+        ke
+    }
+
+    /// Gravitational potential energy of all links, J (z measured from the hip / world origin).
+    pub fn potential_energy_j(&self) -> f64 {
+        self.model
+            .links
+            .iter()
+            .enumerate()
+            .map(|(i, l)| l.mass_kg * GRAVITY_M_S2 * self.world_point(i, DVec3::from(l.com_m)).z)
+            .sum()
+    }
+
+    /// Kinetic + gravitational potential energy of all links, J.
+    pub fn total_energy_j(&self) -> f64 {
+        self.kinetic_energy_j() + self.potential_energy_j()
+    }
+
+    /// Handle of the loop-closure impulse joint (spherical joint at the rod end).
+    pub fn closure_joint(&self) -> ImpulseJointHandle {
+        self.closure
+    }
+
+    /// Access to the underlying Rapier world (read-only), for diagnostics.
+    pub fn rapier_world(&self) -> &PhysicsWorld {
+        &self.world
+    }
+}

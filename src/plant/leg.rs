@@ -1,0 +1,283 @@
+//! The URDF leg in Rapier as a plant of the co-simulation loop.
+
+use super::{PistonMotion, PistonPredictor, Plant, PlantInputs};
+use crate::error::{Error, Result};
+use crate::leg::{generalized_inertia_at, moment_arm_at, reduced_acceleration, Leg, LegModel, LegSolverParams};
+use rapier3d_f64::glamx::DVec3;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Built-in URDFs, embedded so a run needs no data path: `builtin:exo_leg` (75 kg, 1.75 m
+/// male) and `builtin:exo_leg_small` (60 kg, 1.60 m female, heavier cylinder).
+pub const BUILTIN_URDFS: [(&str, &str); 2] = [
+    ("builtin:exo_leg", include_str!("../../urdf/exo_leg.urdf")),
+    ("builtin:exo_leg_small", include_str!("../../urdf/exo_leg_small.urdf")),
+];
+
+/// Leg parameters (scenario section `[leg]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LegParams {
+    /// URDF file with the `<loop_closure>` and `<hydraulic_actuator>` elements, or
+    /// `builtin:exo_leg` (default) / `builtin:exo_leg_small`. A relative path is looked up next
+    /// to the scenario file first, then in the working directory.
+    pub urdf: String,
+    /// Name of the knee joint in the URDF. Default `knee`.
+    pub knee_joint: String,
+    /// Initial knee flexion (deg), leg at rest. Default 30.
+    pub initial_knee_deg: f64,
+    /// Rapier solver iterations (TGS substeps) per step. Default 4. 1..=64.
+    pub solver_iterations: usize,
+}
+
+impl Default for LegParams {
+    fn default() -> Self {
+        Self {
+            urdf: "builtin:exo_leg".into(),
+            knee_joint: "knee".into(),
+            initial_knee_deg: 30.0,
+            solver_iterations: 4,
+        }
+    }
+}
+
+impl LegParams {
+    /// Load and validate the leg model. `base_dir` is the scenario file's directory.
+    pub fn load_model(&self, source_name: &str, base_dir: Option<&Path>) -> Result<LegModel> {
+        let bad = |msg: String| Error::input(source_name, "leg.urdf", msg);
+        if let Some((_, text)) = BUILTIN_URDFS.iter().find(|(n, _)| *n == self.urdf) {
+            return LegModel::from_urdf_str(text, &self.knee_joint).map_err(|e| bad(format!("{}: {e}", self.urdf)));
+        }
+        let p = Path::new(&self.urdf);
+        let candidates: Vec<PathBuf> = if p.is_absolute() {
+            vec![p.to_path_buf()]
+        } else {
+            base_dir
+                .map(|d| d.join(p))
+                .into_iter()
+                .chain(std::iter::once(p.to_path_buf()))
+                .collect()
+        };
+        let found = candidates.iter().find(|c| c.is_file()).ok_or_else(|| {
+            let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+            bad(format!("URDF file not found (tried {})", tried.join(", ")))
+        })?;
+        LegModel::from_urdf_file(found, &self.knee_joint)
+            .map_err(|e| Error::input(found.display().to_string(), "", e.to_string()))
+    }
+}
+
+/// Effective mass at the cylinder, `M(theta) / (dL/dtheta)^2`, tabulated over the knee range.
+struct MassTable {
+    lo_rad: f64,
+    step_rad: f64,
+    kg: Vec<f64>,
+}
+
+impl MassTable {
+    fn new(model: &LegModel) -> Result<Self> {
+        let (lo, hi) = model.knee_range_rad();
+        let n = 400;
+        let step = (hi - lo) / n as f64;
+        let kg = (0..=n)
+            .map(|i| {
+                let q = lo + i as f64 * step;
+                let m = generalized_inertia_at(model, q).map_err(|e| Error::input("leg", "leg.urdf", e.to_string()))?;
+                let arm = moment_arm_at(model, q);
+                Ok(m / (arm * arm))
+            })
+            .collect::<Result<Vec<f64>>>()?;
+        Ok(Self {
+            lo_rad: lo,
+            step_rad: step,
+            kg,
+        })
+    }
+
+    /// Linear interpolation, clamped to the table's range.
+    fn at(&self, q: f64) -> f64 {
+        let u = ((q - self.lo_rad) / self.step_rad).clamp(0.0, (self.kg.len() - 1) as f64);
+        let i = (u.floor() as usize).min(self.kg.len() - 2);
+        let f = u - i as f64;
+        self.kg[i] * (1.0 - f) + self.kg[i + 1] * f
+    }
+}
+
+/// The leg plant: Rapier multibody leg with the hydraulic cylinder in a closed loop.
+///
+/// Coupling (explicit co-simulation with a force-aware predictor): inside a step the loop
+/// integrates the piston as `xc_ddot = a_free + F_cyl(tau)/m_eff`, with `m_eff(theta) =
+/// M(theta)/(dL/dtheta)^2` from the URDF's reduced closed-chain inertia and `a_free` the
+/// part of the last step's measured piston acceleration not explained by the cylinder force
+/// (gravity, velocity terms, human, hip). Rapier then advances under the step's
+/// impulse-average cylinder force, and the loop corrects the load force by `-n2` times the
+/// stroke the prediction missed, so the oil column's spring acts on the geometric change of
+/// cylinder length exactly.
+pub struct LegPlant {
+    leg: Leg,
+    model: LegModel,
+    mass: MassTable,
+    length0_m: f64,
+    length_m: f64,
+    /// Piston velocity at the end of the last step, from Rapier's generalized velocity (m/s).
+    velocity_m_s: f64,
+    /// Measured piston acceleration over the last step (m/s^2).
+    accel_m_s2: f64,
+    free_accel_m_s2: f64,
+    /// Change of the free acceleration over the last step (m/s^2), for linear extrapolation.
+    free_accel_trend_m_s2: f64,
+    cuff_point: [f64; 3],
+    shank_link: usize,
+    knee_axis: DVec3,
+    max_gap_m: f64,
+    /// dt/(2n) for Rapier's n TGS substeps (see [`PistonPredictor::velocity_lead_s`]).
+    velocity_lead_s: f64,
+}
+
+impl LegPlant {
+    /// Build the plant from a loaded model at the scenario's initial knee angle.
+    pub fn new(model: LegModel, p: &LegParams, dt_s: f64, cuff_point: [f64; 3], source_name: &str) -> Result<Self> {
+        let params = LegSolverParams {
+            solver_iterations: p.solver_iterations,
+            ..Default::default()
+        };
+        let q0 = p.initial_knee_deg.to_radians();
+        let leg = Leg::with_params(&model, q0, dt_s, params)
+            .map_err(|e| Error::input(source_name, "leg.initial_knee_deg", e.to_string()))?;
+        let length0_m = leg.cylinder_length_m();
+        let knee = model.knee_joint();
+        let knee_axis = DVec3::from(knee.axis).normalize();
+        let shank_link = knee.child;
+        let mass = MassTable::new(&model)?;
+        // At rest: xc_ddot = dL/dtheta * theta_ddot (the velocity term vanishes).
+        let free_accel_m_s2 = moment_arm_at(&model, q0)
+            * reduced_acceleration(&model, q0, 0.0, 0.0, 0.0)
+                .map_err(|e| Error::input(source_name, "leg.initial_knee_deg", e.to_string()))?;
+        Ok(Self {
+            leg,
+            model,
+            mass,
+            length0_m,
+            length_m: length0_m,
+            velocity_m_s: 0.0,
+            accel_m_s2: free_accel_m_s2,
+            free_accel_m_s2,
+            free_accel_trend_m_s2: 0.0,
+            cuff_point,
+            shank_link,
+            knee_axis,
+            max_gap_m: 0.0,
+            velocity_lead_s: dt_s / (2.0 * p.solver_iterations as f64),
+        })
+    }
+
+    /// The Rapier leg.
+    pub fn leg(&self) -> &Leg {
+        &self.leg
+    }
+
+    /// The leg model.
+    pub fn model(&self) -> &LegModel {
+        &self.model
+    }
+
+    /// Largest loop-closure gap seen so far (m).
+    pub fn max_loop_gap_m(&self) -> f64 {
+        self.max_gap_m
+    }
+
+    /// World force vector of magnitude `flexion_force_n` at the cuff, perpendicular to the
+    /// shank in the sagittal plane, pointing where the cuff moves when the knee flexes.
+    fn cuff_force_world(&self, flexion_force_n: f64) -> [f64; 3] {
+        let pose = self.leg.link_pose(self.shank_link);
+        let axis = pose.rotation * self.knee_axis;
+        let r = pose.rotation * DVec3::from(self.cuff_point);
+        let dir = axis.cross(r).normalize_or_zero();
+        (dir * flexion_force_n).into()
+    }
+}
+
+impl Plant for LegPlant {
+    fn piston_at(&self, _t_s: f64) -> PistonMotion {
+        PistonMotion {
+            position_m: self.length_m - self.length0_m,
+            velocity_m_s: self.velocity_m_s,
+            accel_m_s2: self.accel_m_s2,
+        }
+    }
+
+    fn piston_predictor(&self) -> Option<PistonPredictor> {
+        Some(PistonPredictor {
+            position_m: self.length_m - self.length0_m,
+            velocity_m_s: self.velocity_m_s,
+            // The free acceleration measured over the last step is centred half a step back;
+            // extrapolate it linearly to the middle of the coming step.
+            free_accel_m_s2: self.free_accel_m_s2 + self.free_accel_trend_m_s2,
+            effective_mass_kg: self.mass.at(self.leg.knee_angle_rad()),
+            velocity_lead_s: self.velocity_lead_s,
+            lead_exempt_accel_m_s2: {
+                let (q, qd) = (self.leg.knee_angle_rad(), self.leg.knee_velocity_rad_s());
+                let h = 1e-5;
+                let dm = (moment_arm_at(&self.model, q + h) - moment_arm_at(&self.model, q - h)) / (2.0 * h);
+                dm * qd * qd
+            },
+        })
+    }
+
+    fn knee_rad(&self) -> f64 {
+        self.leg.knee_angle_rad()
+    }
+
+    fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64> {
+        let q = self.leg.knee_angle_rad();
+        // Interaction: positive w1 resists a lengthening surplus of the actuator, so it pushes
+        // the knee the way that shortens the cylinder.
+        let cuff = if inputs.cuff_force_n != 0.0 {
+            let flex = -moment_arm_at(&self.model, q).signum() * inputs.cuff_force_n;
+            Some((self.cuff_point, self.cuff_force_world(flex)))
+        } else {
+            None
+        };
+        let m_eff = self.mass.at(q);
+        self.leg.step(inputs.cylinder_force_n, cuff);
+        let dl = self.leg.cylinder_length_change_m();
+        let q1 = self.leg.knee_angle_rad();
+        let v = moment_arm_at(&self.model, q1) * self.leg.knee_velocity_rad_s();
+        self.accel_m_s2 = (v - self.velocity_m_s) / dt_s;
+        let free = self.accel_m_s2 - inputs.cylinder_force_n / m_eff;
+        self.free_accel_trend_m_s2 = free - self.free_accel_m_s2;
+        self.free_accel_m_s2 = free;
+        self.velocity_m_s = v;
+        self.length_m += dl;
+        self.max_gap_m = self.max_gap_m.max(self.leg.loop_gap_m());
+        if !q1.is_finite() || !self.length_m.is_finite() || !v.is_finite() {
+            return Err(Error::Diverged {
+                time_s: t_s + dt_s,
+                state: "knee_angle_rad".into(),
+                value: q1,
+            });
+        }
+        Ok(dl)
+    }
+
+    fn extra_names(&self) -> Vec<&'static str> {
+        vec![
+            "knee_angle_deg",
+            "knee_velocity_deg_s",
+            "cylinder_length_m",
+            "loop_closure_gap_m",
+            "moment_arm_m",
+        ]
+    }
+
+    fn extra_values(&self, out: &mut Vec<f64>) {
+        let q = self.leg.knee_angle_rad();
+        out.extend_from_slice(&[
+            q.to_degrees(),
+            self.leg.knee_velocity_rad_s().to_degrees(),
+            self.length_m,
+            self.leg.loop_gap_m(),
+            moment_arm_at(&self.model, q),
+        ]);
+    }
+}
