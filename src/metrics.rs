@@ -66,6 +66,10 @@ pub struct Summary {
     pub valve_saturation_fraction: f64,
     /// Fraction of samples with F_L at the supply-pressure limit.
     pub force_limit_fraction: f64,
+    /// Largest loop-closure gap of the leg over the run (m); null on the bench.
+    pub loop_closure_max_gap_m: Option<f64>,
+    /// Knee angle range over the run (deg), [min, max]; null on the bench.
+    pub knee_range_deg: Option<[f64; 2]>,
     /// Number of fixed steps.
     pub steps: usize,
     /// Wall-clock time of the simulation loop (s).
@@ -94,6 +98,13 @@ pub fn summarise(s: &Scenario, r: &Record, wall_time_s: f64) -> Summary {
         peak_load_force_n: max_abs(&r.load_force_n),
         valve_saturation_fraction: mean(&r.valve_saturated),
         force_limit_fraction: mean(&r.force_limited),
+        loop_closure_max_gap_m: r.extra_column("loop_closure_gap_m").map(max_abs),
+        knee_range_deg: r.extra_column("knee_angle_deg").map(|q| {
+            [
+                q.iter().copied().fold(f64::INFINITY, f64::min),
+                q.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            ]
+        }),
         steps,
         wall_time_s,
         steps_per_second: if wall_time_s > 0.0 {

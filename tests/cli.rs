@@ -230,3 +230,36 @@ fn shipped_paper_scenarios_load() {
         exoleg::Scenario::load(Some(&dir.join(f)), &[]).unwrap_or_else(|e| panic!("{f}: {e}"));
     }
 }
+
+#[test]
+fn bad_urdf_input_names_the_file_and_element() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = exoleg(&["run", "--out", "o", "--set", "leg.urdf=missing.urdf"], tmp.path());
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("leg.urdf") && e.contains("missing.urdf") && e.contains("not found"),
+        "{e}"
+    );
+
+    std::fs::write(tmp.path().join("bad.urdf"), "<robot name='x'><link name='a'>").unwrap();
+    let o = exoleg(&["run", "--out", "o", "--set", "leg.urdf=bad.urdf"], tmp.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bad.urdf"), "{}", stderr(&o));
+
+    let good = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("urdf/exo_leg.urdf")).unwrap();
+    std::fs::write(
+        tmp.path().join("rev.urdf"),
+        good.replace("joint=\"rod_slide\"", "joint=\"knee\""),
+    )
+    .unwrap();
+    let o = exoleg(&["run", "--out", "o", "--set", "leg.urdf=rev.urdf"], tmp.path());
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("rev.urdf") && e.contains("knee_cylinder") && e.contains("prismatic"),
+        "{e}"
+    );
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    assert!(!tmp.path().join("o").exists());
+}

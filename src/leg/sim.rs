@@ -18,7 +18,7 @@ use super::model::{JointKind, JointSpec, LegModel, GRAVITY_M_S2};
 /// Solver settings of [`Leg`].
 #[derive(Clone, Copy, Debug)]
 pub struct LegSolverParams {
-    /// Rapier `num_solver_iterations` (default 4).
+    /// Rapier `num_solver_iterations` (default 2).
     pub solver_iterations: usize,
     /// Rapier `num_internal_pgs_iterations` (default 1).
     pub pgs_iterations: usize,
@@ -27,7 +27,7 @@ pub struct LegSolverParams {
 impl Default for LegSolverParams {
     fn default() -> Self {
         Self {
-            solver_iterations: 4,
+            solver_iterations: 2,
             pgs_iterations: 1,
         }
     }

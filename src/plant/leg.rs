@@ -26,7 +26,7 @@ pub struct LegParams {
     pub knee_joint: String,
     /// Initial knee flexion (deg), leg at rest. Default 30.
     pub initial_knee_deg: f64,
-    /// Rapier solver iterations (TGS substeps) per step. Default 4. 1..=64.
+    /// Rapier solver iterations (TGS substeps) per step. Default 2 (see README, "Leg solver"). 1..=64.
     pub solver_iterations: usize,
 }
 
@@ -36,7 +36,7 @@ impl Default for LegParams {
             urdf: "builtin:exo_leg".into(),
             knee_joint: "knee".into(),
             initial_knee_deg: 30.0,
-            solver_iterations: 4,
+            solver_iterations: LegSolverParams::default().solver_iterations,
         }
     }
 }

@@ -1,0 +1,150 @@
+//! The leg through the whole simulator (scenario -> sim loop -> record), checked against the
+//! independent reduced closed-chain model of `common::leg_reference` (built from the URDF's
+//! own numbers, not from Rapier).
+
+mod common;
+use common::leg_reference::{manifest, mean_period, RefModel};
+use common::leg_run;
+
+fn knee_samples(out: &exoleg::RunOutput) -> Vec<(f64, f64)> {
+    let q = out.record.extra_column("knee_angle_deg").unwrap();
+    out.record
+        .t_s
+        .iter()
+        .zip(q)
+        .map(|(t, q)| (*t, q.to_radians()))
+        .collect()
+}
+
+fn check_free_and_hold(builtin: &str, file: &str) {
+    let r = RefModel::from_file(&manifest(file));
+    // Passive release from 30 deg, no actuator force, no damping.
+    let out = leg_run(&[
+        &format!("leg.urdf=\"{builtin}\""),
+        "actuator.mode=\"free\"",
+        "leg.initial_knee_deg=30.0",
+        "sim.duration_s=5.0",
+    ]);
+    let (t_sim, n_sim) = mean_period(&knee_samples(&out));
+    let (t_ref, _) = mean_period(&r.simulate(30f64.to_radians(), 1e-4, 5.0));
+    let err = (t_sim - t_ref) / t_ref;
+    assert!(n_sim >= 3, "{builtin}: {n_sim} maxima");
+    assert!(
+        err.abs() < 0.002,
+        "{builtin}: period {t_sim} vs reference {t_ref} ({:.4}%)",
+        100.0 * err
+    );
+    let gap = out.summary.loop_closure_max_gap_m.unwrap();
+    assert!(gap < 1e-6, "{builtin}: loop gap {gap}");
+
+    // Statics: the reference holding force, applied in `force` mode, keeps the knee still.
+    for deg in [0.0f64, 30.0, 60.0, 90.0] {
+        let f = r.holding_force(deg.to_radians());
+        let out = leg_run(&[
+            &format!("leg.urdf=\"{builtin}\""),
+            "actuator.mode=\"force\"",
+            &format!("actuator.force_n={f:?}"),
+            &format!("leg.initial_knee_deg={deg:?}"),
+        ]);
+        let q = out.record.extra_column("knee_angle_deg").unwrap();
+        let dev = q.iter().fold(0.0f64, |m, x| m.max((x - deg).abs()));
+        assert!(dev < 0.05, "{builtin} at {deg} deg with {f} N: knee moved {dev} deg");
+        // ... and 5% less force does not (the check can fail).
+        let out = leg_run(&[
+            &format!("leg.urdf=\"{builtin}\""),
+            "actuator.mode=\"force\"",
+            &format!("actuator.force_n={:?}", 0.95 * f),
+            &format!("leg.initial_knee_deg={deg:?}"),
+        ]);
+        let q = out.record.extra_column("knee_angle_deg").unwrap();
+        assert!(
+            q.iter().any(|x| (x - deg).abs() > 0.05) || f.abs() < 2.0,
+            "{builtin} {deg}: 95% force also held"
+        );
+    }
+}
+
+#[test]
+fn free_release_period_and_statics_match_the_reference_through_the_simulator() {
+    check_free_and_hold("builtin:exo_leg", "urdf/exo_leg.urdf");
+}
+
+#[test]
+fn a_second_urdf_passes_the_same_checks() {
+    check_free_and_hold("builtin:exo_leg_small", "urdf/exo_leg_small.urdf");
+}
+
+#[test]
+fn urdf_from_a_file_path_works() {
+    let out = leg_run(&[
+        &format!("leg.urdf=\"{}\"", manifest("urdf/exo_leg_small.urdf")),
+        "sim.duration_s=0.2",
+    ]);
+    assert!(out.summary.max_abs_force_error_n < 20.0);
+}
+
+#[test]
+fn paper_cases_on_the_leg_znn_beats_erl_smc_and_the_excess_is_explained() {
+    let base = common::leg_scenario(&[]);
+    let res = exoleg::compare::run_cases(&base, &[]).unwrap();
+    // Released from rest at 30 deg, the piston starts with acceleration a0 = dL/dq * q_ddot.
+    // Rapier's n symplectic substeps move it by a0*dt^2*(n+1)/(2n) in the first step, as if it
+    // had the velocity a0*dt/(2n) at t = 0; the oil spring turns that into an initial force
+    // rate -n2*a0*dt/(2n). The ZNN error law then peaks at (A*w + n2*a0*dt/(2n))/(gamma*e).
+    let r = RefModel::from_file(&manifest("urdf/exo_leg.urdf"));
+    let q0 = 30f64.to_radians();
+    let a0 = r.moment_arm(q0) * r.accel(q0, 0.0, 0.0);
+    let n2 = exoleg::hydraulics::HydraulicParams::default().coefficients().n2;
+    let n = base.file.leg.solver_iterations as f64;
+    let rate0 = n2 * a0 * base.file.sim.dt_s / (2.0 * n);
+    for pair in res.chunks(2) {
+        let (z, s) = (&pair[0], &pair[1]);
+        let (ez, es) = (z.max_abs_force_error_n.unwrap(), s.max_abs_force_error_n.unwrap());
+        assert!(ez < es, "{:?}: ZNN {ez} vs ERL-SMC {es}", z.case);
+        let aw = 200.0 * std::f64::consts::TAU * z.case.frequency_hz;
+        let predicted = (aw + rate0) / (z.case.gain * std::f64::consts::E);
+        assert!(
+            (ez - predicted).abs() < 0.02 * predicted,
+            "{:?}: {ez} N vs predicted {predicted} N",
+            z.case
+        );
+    }
+}
+
+#[test]
+fn coupling_error_shrinks_with_the_step() {
+    // The leg-vs-bench excess is a first-order coupling error: it falls with dt.
+    let e = |dt: &str| leg_run(&[&format!("sim.dt_s={dt}")]).summary.max_abs_force_error_n;
+    let bench = common::run(&[]).summary.max_abs_force_error_n;
+    let (e1, e025) = (e("0.001"), e("0.00025"));
+    assert!(
+        e1 > e025 && e025 > bench - 0.05,
+        "1 ms {e1}, 0.25 ms {e025}, bench {bench}"
+    );
+    assert!(
+        (e025 - bench) < 0.5 * (e1 - bench),
+        "not converging: {e1} {e025} {bench}"
+    );
+}
+
+#[test]
+fn cuff_interaction_moves_the_knee() {
+    let base = ["sim.duration_s=0.5", "controller.kind=\"znn\""];
+    let off = leg_run(&base);
+    let cuff = leg_run(&[&base[..], &["human.mode=\"cuff\"", "human.k_p=2.0", "human.k_d=0.01"]].concat());
+    let w = &cuff.record.interaction_force;
+    assert!(w.iter().any(|x| x.abs() > 1.0), "interaction force stays tiny");
+    let q0 = off.record.extra_column("knee_angle_deg").unwrap();
+    let q1 = cuff.record.extra_column("knee_angle_deg").unwrap();
+    let d = q0.iter().zip(q1).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(d > 0.01, "cuff force did not change the knee trajectory ({d} deg)");
+    assert!(cuff.summary.max_abs_force_error_n.is_finite());
+}
+
+#[test]
+fn leg_runs_are_bit_identical() {
+    let a = leg_run(&["sim.duration_s=0.3"]);
+    let b = leg_run(&["sim.duration_s=0.3"]);
+    assert_eq!(a.record.load_force_n, b.record.load_force_n);
+    assert_eq!(a.record.extra, b.record.extra);
+}
