@@ -13,10 +13,7 @@ fn scenario(sets: &[&str]) -> Scenario {
 fn steps(c: &mut Criterion) {
     let cases = [
         ("leg_arbfnn_fdo_znn", scenario(&[])),
-        (
-            "leg_arbfnn_fdo_znn_4_iterations",
-            scenario(&["leg.solver_iterations=4"]),
-        ),
+        ("leg_arbfnn_fdo_znn_4_iterations", scenario(&["leg.solver_iterations=4"])),
         ("leg_erl_smc", scenario(&["controller.kind=\"erl_smc\""])),
         ("bench_arbfnn_fdo_znn", scenario(&["plant.kind=\"bench\""])),
     ];

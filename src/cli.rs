@@ -3,7 +3,7 @@
 use crate::compare;
 use crate::error::{Error, Result, EXIT_OK};
 use crate::output;
-use crate::scenario::Scenario;
+use crate::scenario::{ReferenceKind, Scenario};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -50,28 +50,27 @@ pub enum Command {
     },
 }
 
+/// Plot title: scenario, controller, plant and reference.
+fn run_title(s: &Scenario) -> String {
+    let f = &s.file;
+    let reference = match f.reference.kind {
+        ReferenceKind::Sine => format!("F_d = {} N sine at {} Hz", f.reference.amplitude_n, f.reference.frequency_hz),
+        ReferenceKind::Gait => {
+            format!("gait {}", f.reference.gait_file.as_deref().unwrap_or(&f.reference.gait_trial))
+        }
+    };
+    format!("{} | {} | {:?} | {}", s.source_name, f.controller.kind.as_str(), f.plant.kind, reference)
+}
+
 /// Execute a parsed command line. Returns the process exit code on success.
 pub fn run(cli: Cli) -> Result<i32> {
     match cli.command {
-        Command::Run {
-            scenario,
-            out,
-            sets,
-            quiet,
-        } => {
+        Command::Run { scenario, out, sets, quiet } => {
             let s = Scenario::load(scenario.as_deref(), &sets)?;
             let res = crate::sim::run(&s)?;
-            let json = serde_json::to_value(&res.summary).map_err(|e| Error::Write {
-                path: out.join("summary.json"),
-                message: e.to_string(),
-            })?;
-            let title = format!(
-                "{} | {} | F_d = {} N at {} Hz",
-                s.source_name,
-                s.file.controller.kind.as_str(),
-                s.file.reference.amplitude_n,
-                s.file.reference.frequency_hz
-            );
+            let json = serde_json::to_value(&res.summary)
+                .map_err(|e| Error::Write { path: out.join("summary.json"), message: e.to_string() })?;
+            let title = run_title(&s);
             output::write_run(&out, &res.record, &json, &title)?;
             if !quiet {
                 let m = &res.summary;
@@ -80,8 +79,7 @@ pub fn run(cli: Cli) -> Result<i32> {
                 println!("max |F_L - F_d|     {:.4} N", m.max_abs_force_error_n);
                 println!(
                     "convergence time    {} (band {:.3} N)",
-                    m.force_convergence_time_s
-                        .map_or("never".into(), |t| format!("{t:.4} s")),
+                    m.force_convergence_time_s.map_or("never".into(), |t| format!("{t:.4} s")),
                     m.force_convergence_band_n
                 );
                 println!("RMS error           {:.4} N", m.rms_force_error_n);
@@ -91,12 +89,7 @@ pub fn run(cli: Cli) -> Result<i32> {
             }
             Ok(EXIT_OK)
         }
-        Command::Compare {
-            scenario,
-            plant,
-            json,
-            sets,
-        } => {
+        Command::Compare { scenario, plant, json, sets } => {
             let mut all = Vec::new();
             if let Some(p) = plant {
                 all.push(format!("plant.kind={p}"));
@@ -104,16 +97,11 @@ pub fn run(cli: Cli) -> Result<i32> {
             all.extend(sets);
             let base = Scenario::load(scenario.as_deref(), &all)?;
             let results = compare::run_cases(&base, &[])?;
-            println!(
-                "Paper cases on plant `{:?}` ({}):",
-                base.file.plant.kind, base.source_name
-            );
+            println!("Paper cases on plant `{:?}` ({}):", base.file.plant.kind, base.source_name);
             print!("{}", compare::table(&results));
             if let Some(p) = json {
-                let bytes = serde_json::to_vec_pretty(&results).map_err(|e| Error::Write {
-                    path: p.clone(),
-                    message: e.to_string(),
-                })?;
+                let bytes = serde_json::to_vec_pretty(&results)
+                    .map_err(|e| Error::Write { path: p.clone(), message: e.to_string() })?;
                 output::write_atomic(&p, &bytes)?;
             }
             Ok(EXIT_OK)

@@ -159,18 +159,14 @@ pub fn table(results: &[CaseResult]) -> String {
     );
     for r in results {
         let c = &r.case;
-        s.push_str(&format!(
-            "{:>4} Hz, gain {:<4} {:<16} ",
-            c.frequency_hz, c.gain, c.controller
-        ));
+        s.push_str(&format!("{:>4} Hz, gain {:<4} {:<16} ", c.frequency_hz, c.gain, c.controller));
         match (r.max_abs_force_error_n, r.max_error_diff_pct) {
             (Some(m), Some(d)) => s.push_str(&format!(
                 "{:>11.3}  {:>9.2}  {:>+7.2}   {:>8}  {:>14.3}  {:>8.2}\n",
                 m,
                 c.paper_max_error_n,
                 d,
-                r.force_convergence_time_s
-                    .map_or("never".to_string(), |t| format!("{t:.3}")),
+                r.force_convergence_time_s.map_or("never".to_string(), |t| format!("{t:.3}")),
                 c.paper_convergence_s,
                 r.force_convergence_band_n
             )),

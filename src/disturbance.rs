@@ -92,11 +92,7 @@ impl Term {
                 let k = ((t_s / hold_s) + 1e-9).floor().max(0.0) as u64;
                 (amplitude * uniform01(seed, stream, k), 0.0)
             }
-            Term::Sine {
-                amplitude,
-                frequency_hz,
-                phase_rad,
-            } => {
+            Term::Sine { amplitude, frequency_hz, phase_rad } => {
                 let w = TAU * frequency_hz;
                 let a = w * t_s + phase_rad;
                 (amplitude * a.sin(), amplitude * w * a.cos())
@@ -159,10 +155,7 @@ mod tests {
 
     #[test]
     fn random_is_uniform_and_repeatable() {
-        let t = Term::Random {
-            amplitude: 1.0,
-            hold_s: 1e-3,
-        };
+        let t = Term::Random { amplitude: 1.0, hold_s: 1e-3 };
         let n = 20_000;
         let mean: f64 = (0..n).map(|k| t.value_and_rate(k as f64 * 1e-3, 7, 0).0).sum::<f64>() / n as f64;
         assert!((mean - 0.5).abs() < 0.01, "mean {mean}");
@@ -175,16 +168,9 @@ mod tests {
     #[test]
     fn paper_w_at_zero() {
         let w = Signal(vec![
-            Term::Sine {
-                amplitude: 1.0,
-                frequency_hz: 1.0,
-                phase_rad: 0.0,
-            },
+            Term::Sine { amplitude: 1.0, frequency_hz: 1.0, phase_rad: 0.0 },
             Term::Constant { value: 1.0 },
-            Term::ExpDecay {
-                amplitude: 1.0,
-                rate_per_s: 0.1,
-            },
+            Term::ExpDecay { amplitude: 1.0, rate_per_s: 0.1 },
         ]);
         let (v, r) = w.value_and_rate(0.0, 1, 2);
         assert!((v - 2.0).abs() < 1e-12);

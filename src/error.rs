@@ -61,11 +61,7 @@ pub enum Error {
 impl Error {
     /// Shorthand for [`Error::Input`].
     pub fn input(source_name: impl Into<String>, key: impl Into<String>, message: impl Into<String>) -> Self {
-        Error::Input {
-            source_name: source_name.into(),
-            key: key.into(),
-            message: message.into(),
-        }
+        Error::Input { source_name: source_name.into(), key: key.into(), message: message.into() }
     }
 
     /// The process exit code for this error.

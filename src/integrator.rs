@@ -64,11 +64,7 @@ mod tests {
     /// Global error on x' = -x over [0, 1] must fall with the scheme's order.
     #[test]
     fn convergence_orders() {
-        for (m, order) in [
-            (Integrator::Euler, 1.0),
-            (Integrator::Ode3, 3.0),
-            (Integrator::Rk4, 4.0),
-        ] {
+        for (m, order) in [(Integrator::Euler, 1.0), (Integrator::Ode3, 3.0), (Integrator::Rk4, 4.0)] {
             let err = |n: usize| {
                 let h = 1.0 / n as f64;
                 let mut x = [1.0];

@@ -12,6 +12,7 @@ pub mod compare;
 pub mod control;
 pub mod disturbance;
 pub mod error;
+pub mod gait_test;
 pub mod human;
 pub mod hydraulics;
 pub mod integrator;

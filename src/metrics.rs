@@ -41,6 +41,63 @@ pub fn mean(xs: &[f64]) -> f64 {
     xs.iter().sum::<f64>() / xs.len() as f64
 }
 
+/// Figures of one stride of a gait run (errors over the whole stride).
+#[derive(Debug, Clone, Serialize)]
+pub struct StrideFigures {
+    /// Stride number, from 0.
+    pub index: usize,
+    /// Start time of the stride (s).
+    pub t_start_s: f64,
+    /// RMS of knee angle - desired (deg).
+    pub knee_rms_error_deg: f64,
+    /// max |knee angle - desired| (deg).
+    pub knee_max_abs_error_deg: f64,
+    /// RMS of F_L - F_d (N).
+    pub force_rms_error_n: f64,
+    /// max |F_L - F_d| (N).
+    pub force_max_abs_error_n: f64,
+    /// max |net cylinder force| (N).
+    pub peak_cylinder_force_n: f64,
+    /// max |cylinder force x piston velocity| (W).
+    pub peak_power_w: f64,
+}
+
+/// Knee error series (deg) from a record with a knee reference.
+pub fn knee_error_deg(r: &Record) -> Option<Vec<f64>> {
+    let q = r.extra_column("knee_angle_deg")?;
+    if r.ref_knee_deg.len() != q.len() {
+        return None;
+    }
+    Some(q.iter().zip(&r.ref_knee_deg).map(|(a, d)| a - d).collect())
+}
+
+/// Mechanical power of the cylinder (W) at each row.
+pub fn cylinder_power_w(r: &Record) -> Vec<f64> {
+    r.cylinder_force_n.iter().zip(&r.piston_velocity_m_s).map(|(f, v)| f * v).collect()
+}
+
+fn strides(r: &Record, knee_err: &[f64]) -> Vec<StrideFigures> {
+    let Some(stride) = r.stride_s else { return Vec::new() };
+    let power = cylinder_power_w(r);
+    let t_end = r.t_s.last().copied().unwrap_or(0.0);
+    let n = ((t_end + 1e-9) / stride).floor() as usize;
+    (0..n)
+        .map(|i| {
+            let (a, b) = (settle_index(&r.t_s, i as f64 * stride), settle_index(&r.t_s, (i + 1) as f64 * stride));
+            StrideFigures {
+                index: i,
+                t_start_s: i as f64 * stride,
+                knee_rms_error_deg: rms(&knee_err[a..b]),
+                knee_max_abs_error_deg: max_abs(&knee_err[a..b]),
+                force_rms_error_n: rms(&r.force_error_n[a..b]),
+                force_max_abs_error_n: max_abs(&r.force_error_n[a..b]),
+                peak_cylinder_force_n: max_abs(&r.cylinder_force_n[a..b]),
+                peak_power_w: max_abs(&power[a..b]),
+            }
+        })
+        .collect()
+}
+
 /// The summary written to `summary.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
@@ -62,6 +119,16 @@ pub struct Summary {
     pub max_abs_valve_command: f64,
     /// max |F_L| (N).
     pub peak_load_force_n: f64,
+    /// RMS of knee angle - desired after the settling window (deg); null without a knee reference.
+    pub knee_rms_error_deg: Option<f64>,
+    /// max |knee angle - desired| after the settling window (deg); null without a knee reference.
+    pub knee_max_abs_error_deg: Option<f64>,
+    /// max |net cylinder force| after the settling window (N).
+    pub peak_cylinder_force_n: f64,
+    /// max |cylinder force x piston velocity| after the settling window (W).
+    pub peak_power_w: f64,
+    /// Per-stride figures of a gait run (empty otherwise).
+    pub strides: Vec<StrideFigures>,
     /// Fraction of samples with the valve command clipped by `actuator.valve_command_limit`.
     pub valve_saturation_fraction: f64,
     /// Fraction of samples with F_L at the supply-pressure limit.
@@ -86,6 +153,7 @@ pub fn summarise(s: &Scenario, r: &Record, wall_time_s: f64) -> Summary {
     let settle = s.file.metrics.settle_s;
     let i0 = settle_index(&r.t_s, settle);
     let steps = r.t_s.len().saturating_sub(1);
+    let knee_err = knee_error_deg(r);
     Summary {
         max_abs_force_error_n: max_abs(&r.force_error_n),
         force_convergence_time_s: convergence_time(&r.t_s, &r.force_error_n, band),
@@ -96,22 +164,20 @@ pub fn summarise(s: &Scenario, r: &Record, wall_time_s: f64) -> Summary {
         rms_force_error_after_settle_n: rms(&r.force_error_n[i0..]),
         max_abs_valve_command: max_abs(&r.valve_command),
         peak_load_force_n: max_abs(&r.load_force_n),
+        knee_rms_error_deg: knee_err.as_ref().map(|e| rms(&e[i0..])),
+        knee_max_abs_error_deg: knee_err.as_ref().map(|e| max_abs(&e[i0..])),
+        peak_cylinder_force_n: max_abs(&r.cylinder_force_n[i0..]),
+        peak_power_w: max_abs(&cylinder_power_w(r)[i0..]),
+        strides: knee_err.as_ref().map_or(Vec::new(), |e| strides(r, e)),
         valve_saturation_fraction: mean(&r.valve_saturated),
         force_limit_fraction: mean(&r.force_limited),
         loop_closure_max_gap_m: r.extra_column("loop_closure_gap_m").map(max_abs),
         knee_range_deg: r.extra_column("knee_angle_deg").map(|q| {
-            [
-                q.iter().copied().fold(f64::INFINITY, f64::min),
-                q.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-            ]
+            [q.iter().copied().fold(f64::INFINITY, f64::min), q.iter().copied().fold(f64::NEG_INFINITY, f64::max)]
         }),
         steps,
         wall_time_s,
-        steps_per_second: if wall_time_s > 0.0 {
-            steps as f64 / wall_time_s
-        } else {
-            f64::INFINITY
-        },
+        steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
         scenario: s.file.clone(),
     }
 }

@@ -131,6 +131,8 @@ pub struct Truth {
     pub piston_accel_m_s2: f64,
     /// Knee angle (rad), 0 on the bench.
     pub knee_rad: f64,
+    /// Knee rate (rad/s), 0 on the bench.
+    pub knee_rate_rad_s: f64,
 }
 
 impl Truth {
@@ -144,6 +146,7 @@ impl Truth {
             piston_velocity_m_s: self.piston_velocity_m_s,
             piston_accel_m_s2: self.piston_accel_m_s2,
             knee_rad: self.knee_rad,
+            knee_rate_rad_s: self.knee_rate_rad_s,
         }
     }
 }
@@ -177,16 +180,8 @@ impl Adc {
     fn new(c: &ChannelParams, preset: SensorPreset, default_range: f64) -> Self {
         let bits = c.bits.or(preset.bits()).unwrap_or(0);
         let range = c.range.unwrap_or(default_range);
-        let lsb = if bits == 0 {
-            0.0
-        } else {
-            2.0 * range / 2f64.powi(bits as i32)
-        };
-        Self {
-            noise_std: c.noise_std,
-            lsb,
-            range,
-        }
+        let lsb = if bits == 0 { 0.0 } else { 2.0 * range / 2f64.powi(bits as i32) };
+        Self { noise_std: c.noise_std, lsb, range }
     }
 
     fn read(&self, x: f64, rng: &mut ChaCha8Rng) -> f64 {
@@ -219,6 +214,7 @@ pub struct SampledSensors {
     d_force: Differentiator,
     d_piston: Differentiator,
     d_piston_vel: Differentiator,
+    d_knee: Differentiator,
 }
 
 impl SampledSensors {
@@ -240,6 +236,7 @@ impl SampledSensors {
             d_force: Differentiator::default(),
             d_piston: Differentiator::default(),
             d_piston_vel: Differentiator::default(),
+            d_knee: Differentiator::default(),
         }
     }
 
@@ -249,15 +246,12 @@ impl SampledSensors {
         let reading: [f64; 4] = std::array::from_fn(|i| self.adc[i].read(raw[i], &mut self.rng));
         self.line.push_back(reading);
         // Until the delay line fills, firmware sees its first reading.
-        let r = if self.line.len() > self.delay {
-            self.line.pop_front().unwrap()
-        } else {
-            self.line[0]
-        };
+        let r = if self.line.len() > self.delay { self.line.pop_front().unwrap() } else { self.line[0] };
         let (ts, a) = (self.period_s, self.alpha);
         let force_rate = self.d_force.update(r[0], ts, a);
         let vel = self.d_piston.update(r[2], ts, a);
         let acc = self.d_piston_vel.update(vel, ts, a);
+        let knee_rate = self.d_knee.update(r[3], ts, a);
         Measurement {
             force_n: r[0],
             force_rate_n_per_s: force_rate,
@@ -266,6 +260,7 @@ impl SampledSensors {
             piston_velocity_m_s: vel,
             piston_accel_m_s2: acc,
             knee_rad: r[3],
+            knee_rate_rad_s: knee_rate,
         }
     }
 }
@@ -276,21 +271,11 @@ mod tests {
 
     #[test]
     fn quantisation_noise_and_delay() {
-        let p = SensorParams {
-            preset: SensorPreset::Adc16,
-            delay_samples: 2,
-            ..Default::default()
-        };
+        let p = SensorParams { preset: SensorPreset::Adc16, delay_samples: 2, ..Default::default() };
         let mut s = SampledSensors::new(&p, 1e-3, 1);
         let lsb = 10000.0 / 65536.0;
         let ys: Vec<f64> = (0..5)
-            .map(|k| {
-                s.sample(&Truth {
-                    force_n: 100.0 * k as f64 + 0.05,
-                    ..Default::default()
-                })
-                .force_n
-            })
+            .map(|k| s.sample(&Truth { force_n: 100.0 * k as f64 + 0.05, ..Default::default() }).force_n)
             .collect();
         // Delay of two samples (first reading repeated until the line fills), on the LSB grid.
         assert_eq!(ys[0], ys[1]);

@@ -33,9 +33,10 @@ use crate::human::{HumanMode, HumanParams};
 use crate::hydraulics::{
     ActuatorMode, ActuatorParams, Coefficients, ForceChannelInput, ForceChannelState, ForceSource, FrictionParams,
 };
+use crate::leg::LegModel;
 use crate::metrics::{self, Summary};
 use crate::plant::{Bench, LegPlant, PistonMotion, PistonPredictor, Plant, PlantInputs, PlantKind};
-use crate::reference::{RefSample, Sine};
+use crate::reference::{KneeForceReference, RefSample, Sine};
 use crate::scenario::{ReferenceKind, Scenario};
 use crate::sensors::{SampledSensors, Truth};
 
@@ -86,6 +87,10 @@ pub struct Record {
     /// True lumped disturbance on dx2/dt relative to the controller's nominal model (N/s^2):
     /// what a perfect observer would estimate.
     pub lumped_disturbance_n_per_s2: Vec<f64>,
+    /// Desired knee angle (deg), when the reference is a knee trajectory (else empty).
+    pub ref_knee_deg: Vec<f64>,
+    /// Stride time (s) of a gait reference, for per-stride figures.
+    pub stride_s: Option<f64>,
     /// Names of the plant-specific columns (with units).
     pub extra_names: Vec<&'static str>,
     /// Plant-specific columns (knee angle, cylinder length, ...), same order as `extra_names`.
@@ -114,6 +119,8 @@ impl Record {
             disturbance_estimate_n_per_s2: v(),
             rbf_output_n_per_s2: v(),
             lumped_disturbance_n_per_s2: v(),
+            ref_knee_deg: Vec::new(),
+            stride_s: None,
             extra: extra_names.iter().map(|_| v()).collect(),
             extra_names,
         }
@@ -141,21 +148,16 @@ impl Record {
             ("rbf_output_n_per_s2", &self.rbf_output_n_per_s2),
             ("lumped_disturbance_n_per_s2", &self.lumped_disturbance_n_per_s2),
         ];
-        c.extend(
-            self.extra_names
-                .iter()
-                .copied()
-                .zip(self.extra.iter().map(|v| v.as_slice())),
-        );
+        if !self.ref_knee_deg.is_empty() {
+            c.push(("ref_knee_angle_deg", &self.ref_knee_deg));
+        }
+        c.extend(self.extra_names.iter().copied().zip(self.extra.iter().map(|v| v.as_slice())));
         c
     }
 
     /// A plant-specific column by name.
     pub fn extra_column(&self, name: &str) -> Option<&[f64]> {
-        self.extra_names
-            .iter()
-            .position(|n| *n == name)
-            .map(|i| self.extra[i].as_slice())
+        self.extra_names.iter().position(|n| *n == name).map(|i| self.extra[i].as_slice())
     }
 }
 
@@ -182,7 +184,7 @@ struct Model<'a> {
     coeffs: Coefficients,
     nominal: NominalModel,
     controller: Box<dyn Controller>,
-    reference: Sine,
+    reference: ForceRef,
     dist: &'a Disturbances,
     human: &'a HumanParams,
     friction: &'a FrictionParams,
@@ -192,9 +194,46 @@ struct Model<'a> {
     seed: u64,
 }
 
+/// The desired load force: a sine, or the knee cascade's feedforward plus its held PD part.
+enum ForceRef {
+    Sine(Sine),
+    Knee(Box<(KneeForceReference, LegModel)>),
+}
+
+/// What is held over one step: the sampled-mode controller output, the leg's piston
+/// predictor, and the outer-loop PD force of the knee cascade.
+#[derive(Clone, Copy, Default)]
+struct StepCtx {
+    held: Option<ControlOutput>,
+    pred: Option<PistonPredictor>,
+    pd_force_n: f64,
+}
+
 impl Model<'_> {
-    fn reference_at(&self, t: f64) -> RefSample {
-        self.reference.at(t)
+    fn reference_at(&self, t: f64, ctx: &StepCtx) -> RefSample {
+        match &self.reference {
+            ForceRef::Sine(s) => s.at(t),
+            ForceRef::Knee(k) => {
+                let mut r = k.0.feedforward_at(t);
+                r.value += ctx.pd_force_n;
+                r
+            }
+        }
+    }
+
+    /// Desired knee angle (rad) and the outer-loop PD force for a knee reading, if any.
+    fn knee_reference(&self, t: f64) -> Option<RefSample> {
+        match &self.reference {
+            ForceRef::Knee(k) => Some(k.0.gait.knee_at(t)),
+            ForceRef::Sine(_) => None,
+        }
+    }
+
+    fn pd_force(&self, t: f64, knee_rad: f64, knee_rate_rad_s: f64) -> f64 {
+        match &self.reference {
+            ForceRef::Knee(k) => k.0.pd_force_n(&k.1, t, knee_rad, knee_rate_rad_s),
+            ForceRef::Sine(_) => 0.0,
+        }
     }
 
     /// The force-channel inputs other than `u`, x2 = dF_L/dt, and d(d_F)/dt at time `t`.
@@ -244,6 +283,7 @@ impl Model<'_> {
             piston_velocity_m_s: p.velocity_m_s,
             piston_accel_m_s2: p.accel_m_s2,
             knee_rad: plant.knee_rad(),
+            knee_rate_rad_s: plant.knee_rate_rad_s(),
         }
     }
 
@@ -257,32 +297,17 @@ impl Model<'_> {
                 let v = x[4];
                 let a = p.free_accel_m_s2 + (x[0] - self.friction.force_n(v)) / p.effective_mass_kg;
                 let v_eff = v + (a - p.lead_exempt_accel_m_s2) * p.velocity_lead_s;
-                PistonMotion {
-                    position_m: x[3],
-                    velocity_m_s: v_eff,
-                    accel_m_s2: a,
-                }
+                PistonMotion { position_m: x[3], velocity_m_s: v_eff, accel_m_s2: a }
             }
         }
     }
 
-    /// Evaluate the continuous dynamics at (t, x). `held` is the sampled-mode output;
-    /// `pred` the leg's piston predictor for this step (None: piston from `plant.piston_at`).
-    fn eval(
-        &self,
-        t: f64,
-        x: &X,
-        plant: &dyn Plant,
-        held: Option<&ControlOutput>,
-        pred: Option<&PistonPredictor>,
-    ) -> Eval {
+    /// Evaluate the continuous dynamics at (t, x) with what is held over the step.
+    fn eval(&self, t: f64, x: &X, plant: &dyn Plant, ctx: &StepCtx) -> Eval {
+        let (held, pred) = (ctx.held.as_ref(), ctx.pred.as_ref());
         let piston = self.piston(t, x, plant, pred);
-        let h = ForceChannelState {
-            force_n: x[0],
-            spool_m: x[1],
-            accel_dist_n_per_s: x[2],
-        };
-        let r = self.reference_at(t);
+        let h = ForceChannelState { force_n: x[0], spool_m: x[1], accel_dist_n_per_s: x[2] };
+        let r = self.reference_at(t, ctx);
         let (mut inp, x2, d_f_rate) = self.environment(t, &h, piston.velocity_m_s, &r);
         // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
         // da/dt = (dF_L/dt - F_f'(v)*a)/m_eff: that is the piston acceleration the force ODE
@@ -302,6 +327,7 @@ impl Model<'_> {
             piston_velocity_m_s: piston.velocity_m_s,
             piston_accel_m_s2: piston.accel_m_s2,
             knee_rad: plant.knee_rad(),
+            knee_rate_rad_s: plant.knee_rate_rad_s(),
         }
         .ideal();
         let mut dx = [0.0; NX];
@@ -337,13 +363,7 @@ impl Model<'_> {
         let c = &self.coeffs;
         let dx2 = c.n1 * dh.spool_m - c.n2 * piston.accel_m_s2 - c.n3 * x2 + d_f_rate + inp.force_accel_dist_n_per_s2;
         let lumped_d = dx2 - self.nominal.force_accel(out.valve_command, &y);
-        Eval {
-            dx,
-            out,
-            x2,
-            lumped_d,
-            force_limited,
-        }
+        Eval { dx, out, x2, lumped_d, force_limited }
     }
 
     /// Clamp the states that sit against hard stops after a step.
@@ -374,69 +394,56 @@ impl Model<'_> {
             2 => "accel_disturbance_integral_n_per_s".into(),
             3 => "predicted_piston_m".into(),
             4 => "predicted_piston_velocity_m_s".into(),
-            _ => self
-                .controller
-                .state_names()
-                .get(i - NH)
-                .cloned()
-                .unwrap_or_else(|| format!("x{i}")),
+            _ => self.controller.state_names().get(i - NH).cloned().unwrap_or_else(|| format!("x{i}")),
         }
     }
-}
-
-fn build_plant(s: &Scenario) -> Result<Box<dyn Plant>> {
-    let f = &s.file;
-    Ok(match f.plant.kind {
-        PlantKind::Bench => Box::new(Bench::new(f.bench.clone())),
-        PlantKind::Leg => {
-            let model = f.leg.load_model(&s.source_name, s.base_dir.as_deref())?;
-            Box::new(LegPlant::new(
-                model,
-                &f.leg,
-                f.sim.dt_s,
-                f.human.cuff_xyz,
-                &s.source_name,
-            )?)
-        }
-    })
 }
 
 /// Build the controller a scenario asks for, with its nominal model.
 pub fn build_controller(s: &Scenario) -> (Box<dyn Controller>, NominalModel) {
     let f = &s.file;
-    let nominal = NominalModel {
-        c: f.controller.nominal.apply(&f.hydraulics).coefficients(),
-    };
+    let nominal = NominalModel { c: f.controller.nominal.apply(&f.hydraulics).coefficients() };
     let gains = ControllerGains {
         gamma: f.controller.gamma,
         k: f.controller.k,
         delta: f.controller.delta,
         zeta: f.controller.zeta,
     };
-    (
-        control::build(
-            f.controller.kind,
-            nominal,
-            &gains,
-            &f.controller.rbf,
-            &f.controller.observer,
-        ),
-        nominal,
-    )
+    (control::build(f.controller.kind, nominal, &gains, &f.controller.rbf, &f.controller.observer), nominal)
 }
 
 /// Run a validated scenario to the end.
 pub fn run(scenario: &Scenario) -> Result<RunOutput> {
     let start = std::time::Instant::now();
     let f = &scenario.file;
+    let src = &scenario.source_name;
     let (controller, nominal) = build_controller(scenario);
+    let leg_model = match f.plant.kind {
+        PlantKind::Leg => Some(f.leg.load_model(src, scenario.base_dir.as_deref())?),
+        PlantKind::Bench => None,
+    };
     let reference = match f.reference.kind {
-        ReferenceKind::Sine => Sine {
+        ReferenceKind::Sine => ForceRef::Sine(Sine {
             amplitude: f.reference.amplitude_n,
             frequency_hz: f.reference.frequency_hz,
             phase_rad: f.reference.phase_rad,
             offset: f.reference.offset_n,
-        },
+        }),
+        ReferenceKind::Gait => {
+            let lm = leg_model
+                .clone()
+                .ok_or_else(|| Error::input(src, "reference.kind", "`gait` needs plant.kind = \"leg\""))?;
+            let gait = f.reference.gait(src, scenario.base_dir.as_deref())?;
+            let r = KneeForceReference::new(
+                gait,
+                &lm,
+                &f.friction,
+                f.reference.drive_hip,
+                f.reference.knee_kp_nm_per_rad,
+                f.reference.knee_kd_nm_s_per_rad,
+            )?;
+            ForceRef::Knee(Box::new((r, lm)))
+        }
     };
     let force_bounds = if f.actuator.pressure_limit {
         (-f.hydraulics.max_pull_force_n(), f.hydraulics.max_push_force_n())
@@ -455,7 +462,21 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         force_bounds,
         seed: f.seed,
     };
-    let mut plant = build_plant(scenario)?;
+    let mut start_on_trajectory = false;
+    let mut plant: Box<dyn Plant> = match leg_model {
+        None => Box::new(Bench::new(f.bench.clone())),
+        Some(lm) => {
+            // Initial knee: at rest at the scenario's angle; else on the gait trajectory
+            // (its angle and rate at t = 0); else at rest at 30 deg.
+            start_on_trajectory = f.leg.initial_knee_deg.is_none() && model.knee_reference(0.0).is_some();
+            let (q0, qd0) = match (f.leg.initial_knee_deg, model.knee_reference(0.0)) {
+                (Some(d), _) => (d.to_radians(), 0.0),
+                (None, Some(k)) => (k.value, k.rate),
+                (None, None) => (30f64.to_radians(), 0.0),
+            };
+            Box::new(LegPlant::new(lm, &f.leg, q0, qd0, f.sim.dt_s, f.human.cuff_xyz, src)?)
+        }
+    };
     let dt = f.sim.dt_s;
     let steps = scenario.steps();
     let sample_every = if f.controller.sample_period_s > 0.0 {
@@ -469,12 +490,15 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
     // reading inside the loop (after the piston predictor has set the piston states).
     let mut x: X = [0.0; NX];
     let ns = model.controller.state_len();
-    let mut held = ControlOutput::default();
+    let mut ctx = StepCtx { held: sample_every.map(|_| ControlOutput::default()), ..Default::default() };
     let mut rec = Record::with_capacity(steps + 1, plant.extra_names());
     let mut extra = Vec::with_capacity(rec.extra_names.len());
+    if let ForceRef::Knee(k) = &model.reference {
+        rec.stride_s = Some(k.0.gait.stride_s);
+    }
 
-    let mut record = |t: f64, x: &X, e: &Eval, w1: f64, rec: &mut Record, plant: &dyn Plant| {
-        let r = model.reference_at(t);
+    let mut record = |t: f64, x: &X, e: &Eval, w1: f64, ctx: &StepCtx, rec: &mut Record, plant: &dyn Plant| {
+        let r = model.reference_at(t, ctx);
         let p = plant.piston_at(t);
         rec.t_s.push(t);
         rec.ref_force_n.push(r.value);
@@ -491,10 +515,12 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         rec.friction_force_n.push(model.friction.force_n(p.velocity_m_s));
         rec.cylinder_force_n.push(model.cylinder_force(x, p.velocity_m_s, &r));
         rec.interaction_force.push(w1);
-        rec.disturbance_estimate_n_per_s2
-            .push(e.out.disturbance_estimate_n_per_s2);
+        rec.disturbance_estimate_n_per_s2.push(e.out.disturbance_estimate_n_per_s2);
         rec.rbf_output_n_per_s2.push(e.out.rbf_output_n_per_s2);
         rec.lumped_disturbance_n_per_s2.push(e.lumped_d);
+        if let Some(k) = model.knee_reference(t) {
+            rec.ref_knee_deg.push(k.value.to_degrees());
+        }
         extra.clear();
         plant.extra_values(&mut extra);
         for (col, v) in rec.extra.iter_mut().zip(&extra) {
@@ -506,58 +532,73 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
     let mut last_w1 = 0.0;
     for k in 0..steps {
         let t = k as f64 * dt;
-        let r0 = model.reference_at(t);
         // The leg's local piston model for this step (None for a prescribed piston).
-        let pred = if hydraulic { plant.piston_predictor() } else { None };
-        if let Some(p) = &pred {
+        ctx.pred = if hydraulic { plant.piston_predictor() } else { None };
+        if let Some(p) = &ctx.pred {
             x[3] = p.position_m;
             x[4] = p.velocity_m_s;
         }
-        if k == 0 {
-            let e = model.eval(0.0, &x, plant.as_ref(), Some(&ControlOutput::default()), pred.as_ref());
-            let y0: Measurement = model.truth(&x, e.x2, plant.as_ref(), 0.0).ideal();
-            model.controller.init(&y0, &r0, &mut x[NH..]);
+        if k == 0 && start_on_trajectory && hydraulic {
+            // Start the hydraulics on the trajectory too: F_L = F_d(0) and the spool opening
+            // that gives dF_L/dt = dF_d/dt(0) with the piston already moving.
+            let r = model.reference_at(0.0, &ctx);
+            let v = model.piston(0.0, &x, plant.as_ref(), ctx.pred.as_ref()).velocity_m_s;
+            let c = &model.coeffs;
+            x[0] = r.value;
+            x[1] = (r.rate + c.n2 * v + c.n3 * r.value - c.n4) / c.n1;
         }
-        if let (Some(m), Some(sens)) = (sample_every, sensors.as_mut()) {
-            if k % m == 0 {
-                let e = model.eval(t, &x, plant.as_ref(), Some(&held), pred.as_ref());
-                let y = sens.sample(&model.truth(&x, e.x2, plant.as_ref(), t));
-                held = model.limit(model.controller.output(t, &r0, &y, &x[NH..NH + ns]));
-                let ts = f.controller.sample_period_s;
-                model
-                    .controller
-                    .discrete_update(t, ts, &r0, &y, &mut x[NH..NH + ns], &held);
+        match (sample_every, sensors.as_mut()) {
+            (Some(m), Some(sens)) => {
+                if k % m == 0 {
+                    // Digital controller: sample, update the outer loop and the force controller.
+                    let e = model.eval(t, &x, plant.as_ref(), &ctx);
+                    let y = sens.sample(&model.truth(&x, e.x2, plant.as_ref(), t));
+                    ctx.pd_force_n = model.pd_force(t, y.knee_rad, y.knee_rate_rad_s);
+                    let r = model.reference_at(t, &ctx);
+                    if k == 0 {
+                        model.controller.init(&y, &r, &mut x[NH..]);
+                    }
+                    let out = model.limit(model.controller.output(t, &r, &y, &x[NH..NH + ns]));
+                    let ts = f.controller.sample_period_s;
+                    model.controller.discrete_update(t, ts, &r, &y, &mut x[NH..NH + ns], &out);
+                    ctx.held = Some(out);
+                }
+            }
+            _ => {
+                ctx.pd_force_n = model.pd_force(t, plant.knee_rad(), plant.knee_rate_rad_s());
+                if k == 0 {
+                    let init_ctx = StepCtx { held: Some(ControlOutput::default()), ..ctx };
+                    let e = model.eval(0.0, &x, plant.as_ref(), &init_ctx);
+                    let y0: Measurement = model.truth(&x, e.x2, plant.as_ref(), 0.0).ideal();
+                    model.controller.init(&y0, &model.reference_at(0.0, &ctx), &mut x[NH..]);
+                }
             }
         }
-        let hold = sample_every.map(|_| held);
-        let e0 = model.eval(t, &x, plant.as_ref(), hold.as_ref(), pred.as_ref());
+        let r0 = model.reference_at(t, &ctx);
+        let e0 = model.eval(t, &x, plant.as_ref(), &ctx);
         let w1 = match model.human.mode {
             HumanMode::Cuff | HumanMode::Paper => model.human.interaction(x[0] - r0.value, e0.x2 - r0.rate),
             HumanMode::Off => 0.0,
         };
-        record(t, &x, &e0, w1, &mut rec, plant.as_ref());
+        record(t, &x, &e0, w1, &ctx, &mut rec, plant.as_ref());
         let p_ref = plant.as_ref();
         let v0 = plant.piston_at(t).velocity_m_s;
         let x_start = x;
         if hydraulic {
-            x = f.sim.integrator.step(t, dt, &x, |tau, xs| {
-                model.eval(tau, xs, p_ref, hold.as_ref(), pred.as_ref()).dx
-            });
+            x = f.sim.integrator.step(t, dt, &x, |tau, xs| model.eval(tau, xs, p_ref, &ctx).dx);
         }
         // The force the mechanics get over the step: with a predictor, the impulse-average
         // force the predictor integrated; otherwise the force at the step start.
-        let cylinder_force_n = match &pred {
+        let cylinder_force_n = match &ctx.pred {
             Some(p) => p.effective_mass_kg * ((x[4] - x_start[4]) / dt - p.free_accel_m_s2),
             None => model.cylinder_force(&x_start, v0, &r0),
         };
-        let inputs = PlantInputs {
-            cylinder_force_n,
-            cuff_force_n: if model.human.mode == HumanMode::Cuff { w1 } else { 0.0 },
-        };
+        let inputs =
+            PlantInputs { cylinder_force_n, cuff_force_n: if model.human.mode == HumanMode::Cuff { w1 } else { 0.0 } };
         let stroke = plant.advance(t, dt, &inputs)?;
         if hydraulic {
             // Stroke the force ODE did not see: the oil spring acts on the geometric change.
-            let seen = match &pred {
+            let seen = match &ctx.pred {
                 Some(_) => x[3] - x_start[3],
                 None => plant.piston_at(t + dt).position_m - plant.piston_at(t).position_m,
             };
@@ -565,23 +606,19 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         }
         model.clamp(&mut x);
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-            return Err(Error::Diverged {
-                time_s: t + dt,
-                state: model.state_name(i),
-                value: x[i],
-            });
+            return Err(Error::Diverged { time_s: t + dt, state: model.state_name(i), value: x[i] });
         }
         last_w1 = w1;
     }
     // The final row, evaluated the way the next step would see it.
     let t_end = steps as f64 * dt;
-    let pred = if hydraulic { plant.piston_predictor() } else { None };
-    if let Some(p) = &pred {
+    ctx.pred = if hydraulic { plant.piston_predictor() } else { None };
+    if let Some(p) = &ctx.pred {
         x[3] = p.position_m;
         x[4] = p.velocity_m_s;
     }
-    let e = model.eval(t_end, &x, plant.as_ref(), sample_every.map(|_| &held), pred.as_ref());
-    record(t_end, &x, &e, last_w1, &mut rec, plant.as_ref());
+    let e = model.eval(t_end, &x, plant.as_ref(), &ctx);
+    record(t_end, &x, &e, last_w1, &ctx, &mut rec, plant.as_ref());
     let wall = start.elapsed().as_secs_f64();
     let summary = metrics::summarise(scenario, &rec, wall);
     Ok(RunOutput { record: rec, summary })

@@ -14,15 +14,8 @@ fn open_loop_force_from_piston_motion_matches_the_exact_solution() {
     let mut x = [0.0, 0.0, 0.0];
     for k in 0..10_000 {
         x = Integrator::Rk4.step(k as f64 * dt, dt, &x, |t, x| {
-            let s = ForceChannelState {
-                force_n: x[0],
-                spool_m: x[1],
-                accel_dist_n_per_s: x[2],
-            };
-            let inp = ForceChannelInput {
-                piston_velocity_m_s: a * w * (w * t).cos(),
-                ..Default::default()
-            };
+            let s = ForceChannelState { force_n: x[0], spool_m: x[1], accel_dist_n_per_s: x[2] };
+            let inp = ForceChannelInput { piston_velocity_m_s: a * w * (w * t).cos(), ..Default::default() };
             let d = c.derivatives(&s, &inp);
             [d.force_n, d.spool_m, d.accel_dist_n_per_s]
         });
@@ -31,11 +24,7 @@ fn open_loop_force_from_piston_motion_matches_the_exact_solution() {
     let t = 1.0;
     let exact =
         -c.n2 * a * w * (c.n3 * (w * t).cos() + w * (w * t).sin() - c.n3 * (-c.n3 * t).exp()) / (c.n3 * c.n3 + w * w);
-    assert!(
-        (x[0] - exact).abs() < 1e-6 * exact.abs().max(1.0),
-        "{} vs {exact}",
-        x[0]
-    );
+    assert!((x[0] - exact).abs() < 1e-6 * exact.abs().max(1.0), "{} vs {exact}", x[0]);
     assert!(exact.abs() > 10.0, "the motion must load the channel: {exact} N");
 }
 

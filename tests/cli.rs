@@ -4,11 +4,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn exoleg(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_exoleg"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("spawn exoleg")
+    Command::new(env!("CARGO_BIN_EXE_exoleg")).args(args).current_dir(dir).output().expect("spawn exoleg")
 }
 
 fn stderr(o: &Output) -> String {
@@ -47,39 +43,23 @@ fn missing_file() {
 
 #[test]
 fn malformed_toml() {
-    expect_bad(
-        Some("[sim\ndt_s = 0.001\n"),
-        &[],
-        &["s.toml", "malformed TOML", "line 1"],
-    );
+    expect_bad(Some("[sim\ndt_s = 0.001\n"), &[], &["s.toml", "malformed TOML", "line 1"]);
 }
 
 #[test]
 fn unknown_key() {
-    expect_bad(
-        Some("[controller]\ngama = 100.0\n"),
-        &[],
-        &["s.toml", "controller", "unknown field `gama`"],
-    );
+    expect_bad(Some("[controller]\ngama = 100.0\n"), &[], &["s.toml", "controller", "unknown field `gama`"]);
     expect_bad(None, &["--set", "sim.dtt_s=0.001"], &["sim", "dtt_s"]);
 }
 
 #[test]
 fn wrong_type() {
-    expect_bad(
-        Some("[controller]\ngamma = \"fast\"\n"),
-        &[],
-        &["s.toml", "controller.gamma", "invalid type"],
-    );
+    expect_bad(Some("[controller]\ngamma = \"fast\"\n"), &[], &["s.toml", "controller.gamma", "invalid type"]);
 }
 
 #[test]
 fn non_positive_physical_parameter() {
-    expect_bad(
-        Some("[hydraulics]\nbeta_pa = -1.0\n"),
-        &[],
-        &["s.toml", "hydraulics.beta_pa", "> 0"],
-    );
+    expect_bad(Some("[hydraulics]\nbeta_pa = -1.0\n"), &[], &["s.toml", "hydraulics.beta_pa", "> 0"]);
     expect_bad(Some("[hydraulics]\nv0_m3 = 0.0\n"), &[], &["hydraulics.v0_m3", "> 0"]);
 }
 
@@ -91,38 +71,20 @@ fn bad_dt() {
 
 #[test]
 fn non_finite_value() {
-    expect_bad(
-        Some("[reference]\namplitude_n = nan\n"),
-        &[],
-        &["reference.amplitude_n", "finite"],
-    );
-    expect_bad(
-        Some("[controller]\ngamma = inf\n"),
-        &[],
-        &["controller.gamma", "finite"],
-    );
+    expect_bad(Some("[reference]\namplitude_n = nan\n"), &[], &["reference.amplitude_n", "finite"]);
+    expect_bad(Some("[controller]\ngamma = inf\n"), &[], &["controller.gamma", "finite"]);
 }
 
 #[test]
 fn unknown_controller_kind() {
-    expect_bad(
-        Some("[controller]\nkind = \"pid\"\n"),
-        &[],
-        &["controller.kind", "unknown variant `pid`"],
-    );
+    expect_bad(Some("[controller]\nkind = \"pid\"\n"), &[], &["controller.kind", "unknown variant `pid`"]);
 }
 
 #[test]
 fn diverging_run_says_when_and_which_state_and_writes_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let o = exoleg(
-        &[
-            "run",
-            "--out",
-            "outdir",
-            "--set",
-            "disturbance.force_accel=[{kind=\"step\",amplitude=1e6}]",
-        ],
+        &["run", "--out", "outdir", "--set", "disturbance.force_accel=[{kind=\"step\",amplitude=1e6}]"],
         tmp.path(),
     );
     let err = stderr(&o);
@@ -134,13 +96,7 @@ fn diverging_run_says_when_and_which_state_and_writes_nothing() {
 #[test]
 fn same_scenario_and_seed_give_identical_timeseries() {
     let tmp = tempfile::tempdir().unwrap();
-    let sets = [
-        "--set",
-        "disturbance.force_rate=[{kind=\"random\",amplitude=50.0}]",
-        "--set",
-        "seed=42",
-        "--quiet",
-    ];
+    let sets = ["--set", "disturbance.force_rate=[{kind=\"random\",amplitude=50.0}]", "--set", "seed=42", "--quiet"];
     let a = exoleg(&[&["run", "--out", "a"][..], &sets].concat(), tmp.path());
     let b = exoleg(&[&["run", "--out", "b"][..], &sets].concat(), tmp.path());
     assert!(a.status.success() && b.status.success(), "{}", stderr(&a));
@@ -221,12 +177,9 @@ fn compare_prints_the_paper_table_and_writes_json() {
 #[test]
 fn shipped_paper_scenarios_load() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios");
-    for f in [
-        "paper_2hz_gamma100.toml",
-        "paper_2hz_gamma200.toml",
-        "paper_10hz_gamma200.toml",
-        "paper_10hz_gamma300.toml",
-    ] {
+    for f in
+        ["paper_2hz_gamma100.toml", "paper_2hz_gamma200.toml", "paper_10hz_gamma200.toml", "paper_10hz_gamma300.toml"]
+    {
         exoleg::Scenario::load(Some(&dir.join(f)), &[]).unwrap_or_else(|e| panic!("{f}: {e}"));
     }
 }
@@ -237,10 +190,7 @@ fn bad_urdf_input_names_the_file_and_element() {
     let o = exoleg(&["run", "--out", "o", "--set", "leg.urdf=missing.urdf"], tmp.path());
     assert_eq!(o.status.code(), Some(2));
     let e = stderr(&o);
-    assert!(
-        e.contains("leg.urdf") && e.contains("missing.urdf") && e.contains("not found"),
-        "{e}"
-    );
+    assert!(e.contains("leg.urdf") && e.contains("missing.urdf") && e.contains("not found"), "{e}");
 
     std::fs::write(tmp.path().join("bad.urdf"), "<robot name='x'><link name='a'>").unwrap();
     let o = exoleg(&["run", "--out", "o", "--set", "leg.urdf=bad.urdf"], tmp.path());
@@ -248,18 +198,11 @@ fn bad_urdf_input_names_the_file_and_element() {
     assert!(stderr(&o).contains("bad.urdf"), "{}", stderr(&o));
 
     let good = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("urdf/exo_leg.urdf")).unwrap();
-    std::fs::write(
-        tmp.path().join("rev.urdf"),
-        good.replace("joint=\"rod_slide\"", "joint=\"knee\""),
-    )
-    .unwrap();
+    std::fs::write(tmp.path().join("rev.urdf"), good.replace("joint=\"rod_slide\"", "joint=\"knee\"")).unwrap();
     let o = exoleg(&["run", "--out", "o", "--set", "leg.urdf=rev.urdf"], tmp.path());
     assert_eq!(o.status.code(), Some(2));
     let e = stderr(&o);
-    assert!(
-        e.contains("rev.urdf") && e.contains("knee_cylinder") && e.contains("prismatic"),
-        "{e}"
-    );
+    assert!(e.contains("rev.urdf") && e.contains("knee_cylinder") && e.contains("prismatic"), "{e}");
     assert_eq!(e.trim_end().lines().count(), 1, "{e}");
     assert!(!tmp.path().join("o").exists());
 }

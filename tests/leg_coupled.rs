@@ -8,12 +8,7 @@ use common::leg_run;
 
 fn knee_samples(out: &exoleg::RunOutput) -> Vec<(f64, f64)> {
     let q = out.record.extra_column("knee_angle_deg").unwrap();
-    out.record
-        .t_s
-        .iter()
-        .zip(q)
-        .map(|(t, q)| (*t, q.to_radians()))
-        .collect()
+    out.record.t_s.iter().zip(q).map(|(t, q)| (*t, q.to_radians())).collect()
 }
 
 fn check_free_and_hold(builtin: &str, file: &str) {
@@ -29,11 +24,7 @@ fn check_free_and_hold(builtin: &str, file: &str) {
     let (t_ref, _) = mean_period(&r.simulate(30f64.to_radians(), 1e-4, 5.0));
     let err = (t_sim - t_ref) / t_ref;
     assert!(n_sim >= 3, "{builtin}: {n_sim} maxima");
-    assert!(
-        err.abs() < 0.002,
-        "{builtin}: period {t_sim} vs reference {t_ref} ({:.4}%)",
-        100.0 * err
-    );
+    assert!(err.abs() < 0.002, "{builtin}: period {t_sim} vs reference {t_ref} ({:.4}%)", 100.0 * err);
     let gap = out.summary.loop_closure_max_gap_m.unwrap();
     assert!(gap < 1e-6, "{builtin}: loop gap {gap}");
 
@@ -57,10 +48,7 @@ fn check_free_and_hold(builtin: &str, file: &str) {
             &format!("leg.initial_knee_deg={deg:?}"),
         ]);
         let q = out.record.extra_column("knee_angle_deg").unwrap();
-        assert!(
-            q.iter().any(|x| (x - deg).abs() > 0.05) || f.abs() < 2.0,
-            "{builtin} {deg}: 95% force also held"
-        );
+        assert!(q.iter().any(|x| (x - deg).abs() > 0.05) || f.abs() < 2.0, "{builtin} {deg}: 95% force also held");
     }
 }
 
@@ -76,10 +64,7 @@ fn a_second_urdf_passes_the_same_checks() {
 
 #[test]
 fn urdf_from_a_file_path_works() {
-    let out = leg_run(&[
-        &format!("leg.urdf=\"{}\"", manifest("urdf/exo_leg_small.urdf")),
-        "sim.duration_s=0.2",
-    ]);
+    let out = leg_run(&[&format!("leg.urdf=\"{}\"", manifest("urdf/exo_leg_small.urdf")), "sim.duration_s=0.2"]);
     assert!(out.summary.max_abs_force_error_n < 20.0);
 }
 
@@ -103,11 +88,7 @@ fn paper_cases_on_the_leg_znn_beats_erl_smc_and_the_excess_is_explained() {
         assert!(ez < es, "{:?}: ZNN {ez} vs ERL-SMC {es}", z.case);
         let aw = 200.0 * std::f64::consts::TAU * z.case.frequency_hz;
         let predicted = (aw + rate0) / (z.case.gain * std::f64::consts::E);
-        assert!(
-            (ez - predicted).abs() < 0.02 * predicted,
-            "{:?}: {ez} N vs predicted {predicted} N",
-            z.case
-        );
+        assert!((ez - predicted).abs() < 0.02 * predicted, "{:?}: {ez} N vs predicted {predicted} N", z.case);
     }
 }
 
@@ -117,14 +98,8 @@ fn coupling_error_shrinks_with_the_step() {
     let e = |dt: &str| leg_run(&[&format!("sim.dt_s={dt}")]).summary.max_abs_force_error_n;
     let bench = common::run(&[]).summary.max_abs_force_error_n;
     let (e1, e025) = (e("0.001"), e("0.00025"));
-    assert!(
-        e1 > e025 && e025 > bench - 0.05,
-        "1 ms {e1}, 0.25 ms {e025}, bench {bench}"
-    );
-    assert!(
-        (e025 - bench) < 0.5 * (e1 - bench),
-        "not converging: {e1} {e025} {bench}"
-    );
+    assert!(e1 > e025 && e025 > bench - 0.05, "1 ms {e1}, 0.25 ms {e025}, bench {bench}");
+    assert!((e025 - bench) < 0.5 * (e1 - bench), "not converging: {e1} {e025} {bench}");
 }
 
 #[test]

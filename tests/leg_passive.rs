@@ -17,10 +17,7 @@ fn passive_check(urdf: &str) {
     let (t_ref, n_ref) = mean_period(&ref_samples);
 
     // Oscillation energy scale: V(theta0) - min V over the swing.
-    let vmin = ref_samples
-        .iter()
-        .map(|&(_, q)| r.potential(q))
-        .fold(f64::INFINITY, f64::min);
+    let vmin = ref_samples.iter().map(|&(_, q)| r.potential(q)).fold(f64::INFINITY, f64::min);
     let de_osc = r.potential(th0) - vmin;
 
     let mut leg = Leg::new(&model, th0, dt).unwrap();
@@ -73,10 +70,7 @@ fn passive_check(urdf: &str) {
     );
     assert!(period_err.abs() < 0.002, "period error {period_err}");
     assert!(max_gap < 1e-6, "gap {max_gap}");
-    assert!(
-        max_de / de_osc < 0.005,
-        "energy drift {max_de} J vs oscillation energy {de_osc} J"
-    );
+    assert!(max_de / de_osc < 0.005, "energy drift {max_de} J vs oscillation energy {de_osc} J");
     assert!(max_marm_err < 1e-3, "moment arm error {max_marm_err}");
     assert!(max_vel_err < 1e-3, "cylinder velocity error {max_vel_err}");
 }

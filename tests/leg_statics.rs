@@ -25,10 +25,7 @@ fn statics_check(urdf: &str) {
         let f_lib = holding_force_at(&model, th).unwrap();
         let marm_lib = moment_arm_at(&model, th);
         let marm_ref = r.moment_arm(th);
-        assert!(
-            ((marm_lib - marm_ref) / marm_ref).abs() < 1e-6,
-            "{deg} deg: moment arm lib {marm_lib} ref {marm_ref}"
-        );
+        assert!(((marm_lib - marm_ref) / marm_ref).abs() < 1e-6, "{deg} deg: moment arm lib {marm_lib} ref {marm_ref}");
         assert!(((cylinder_length_at(&model, th) - r.length(th)) / r.length(th)).abs() < 1e-12);
         // Simulation: the knee response is affine in F; solve for zero velocity after one step.
         let v0 = one_step_vel(&model, th, 0.0);
@@ -86,9 +83,6 @@ fn cuff_force_balanced_by_actuator() {
         leg.step(f_act, Some((p, f)));
         max_dev = max_dev.max((leg.knee_angle_rad() - th).abs());
     }
-    println!(
-        "cuff: tau {tau:+.3} N m, actuator {f_act:+.2} N, max dev {:.2e} deg",
-        max_dev.to_degrees()
-    );
+    println!("cuff: tau {tau:+.3} N m, actuator {f_act:+.2} N, max dev {:.2e} deg", max_dev.to_degrees());
     assert!(max_dev.to_degrees() < 0.05);
 }

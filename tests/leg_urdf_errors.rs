@@ -46,10 +46,7 @@ fn malformed_xml() {
 #[test]
 fn closure_unknown_link() {
     let e = load(&replaced(r#"<link2 name="shank""#, r#"<link2 name="shin""#)).unwrap_err();
-    assert!(
-        matches!(&e, LegError::UnknownLink { link, .. } if link == "shin"),
-        "{e}"
-    );
+    assert!(matches!(&e, LegError::UnknownLink { link, .. } if link == "shin"), "{e}");
     assert!(e.to_string().contains("rod_end"), "{e}");
     println!("{e}");
 }
@@ -64,10 +61,7 @@ fn joint_unknown_link() {
 #[test]
 fn actuator_unknown_joint() {
     let e = load(&replaced(r#"joint="rod_slide""#, r#"joint="rod_slid""#)).unwrap_err();
-    assert!(
-        matches!(&e, LegError::UnknownJoint { joint, .. } if joint == "rod_slid"),
-        "{e}"
-    );
+    assert!(matches!(&e, LegError::UnknownJoint { joint, .. } if joint == "rod_slid"), "{e}");
     assert!(e.to_string().contains("knee_cylinder"), "{e}");
     println!("{e}");
 }
@@ -75,20 +69,14 @@ fn actuator_unknown_joint() {
 #[test]
 fn actuator_not_prismatic() {
     let e = load(&replaced(r#"joint="rod_slide""#, r#"joint="barrel_pivot""#)).unwrap_err();
-    assert!(
-        matches!(&e, LegError::WrongJointType { joint, .. } if joint == "barrel_pivot"),
-        "{e}"
-    );
+    assert!(matches!(&e, LegError::WrongJointType { joint, .. } if joint == "barrel_pivot"), "{e}");
     println!("{e}");
 }
 
 #[test]
 fn unknown_knee_parameter() {
     let e = LegModel::from_urdf_str(&good(), "left_knee").unwrap_err();
-    assert!(
-        matches!(&e, LegError::UnknownJoint { joint, .. } if joint == "left_knee"),
-        "{e}"
-    );
+    assert!(matches!(&e, LegError::UnknownJoint { joint, .. } if joint == "left_knee"), "{e}");
     let e = LegModel::from_urdf_str(&good(), "rod_slide").unwrap_err();
     assert!(matches!(&e, LegError::WrongJointType { .. }), "{e}");
 }
@@ -97,10 +85,7 @@ fn unknown_knee_parameter() {
 fn zero_and_negative_mass() {
     for m in ["0", "-0.6"] {
         let e = load(&replaced(r#"<mass value="0.6"/>"#, &format!(r#"<mass value="{m}"/>"#))).unwrap_err();
-        assert!(
-            matches!(&e, LegError::NonPositiveMass { link, .. } if link == "barrel"),
-            "{e}"
-        );
+        assert!(matches!(&e, LegError::NonPositiveMass { link, .. } if link == "barrel"), "{e}");
         println!("{e}");
     }
 }
@@ -109,20 +94,11 @@ fn zero_and_negative_mass() {
 fn inertia_not_positive_definite() {
     // Negative diagonal.
     let e = load(&replaced(r#"iyy="0.0401872""#, r#"iyy="-0.0401872""#)).unwrap_err();
-    assert!(
-        matches!(&e, LegError::InertiaNotPositiveDefinite { link, .. } if link == "shank"),
-        "{e}"
-    );
+    assert!(matches!(&e, LegError::InertiaNotPositiveDefinite { link, .. } if link == "shank"), "{e}");
     // Positive diagonal but indefinite (huge product of inertia).
-    let e = load(&replaced(
-        r#"<inertia ixx="0.0383183" ixy="0""#,
-        r#"<inertia ixx="0.0383183" ixy="0.5""#,
-    ))
-    .unwrap_err();
-    assert!(
-        matches!(&e, LegError::InertiaNotPositiveDefinite { link, .. } if link == "shank"),
-        "{e}"
-    );
+    let e =
+        load(&replaced(r#"<inertia ixx="0.0383183" ixy="0""#, r#"<inertia ixx="0.0383183" ixy="0.5""#)).unwrap_err();
+    assert!(matches!(&e, LegError::InertiaNotPositiveDefinite { link, .. } if link == "shank"), "{e}");
     println!("{e}");
 }
 
@@ -156,29 +132,16 @@ fn missing_extension_elements() {
     let end = g.find("</loop_closure>").unwrap() + "</loop_closure>".len();
     let no_closure = format!("{}{}", &g[..start], &g[end..]);
     let e = load(&no_closure).unwrap_err();
-    assert!(
-        matches!(&e, LegError::Missing { what } if what.contains("loop_closure")),
-        "{e}"
-    );
-    let e = load(&replaced(
-        r#"<hydraulic_actuator name="knee_cylinder" joint="rod_slide"/>"#,
-        "",
-    ))
-    .unwrap_err();
-    assert!(
-        matches!(&e, LegError::Missing { what } if what.contains("hydraulic_actuator")),
-        "{e}"
-    );
+    assert!(matches!(&e, LegError::Missing { what } if what.contains("loop_closure")), "{e}");
+    let e = load(&replaced(r#"<hydraulic_actuator name="knee_cylinder" joint="rod_slide"/>"#, "")).unwrap_err();
+    assert!(matches!(&e, LegError::Missing { what } if what.contains("hydraulic_actuator")), "{e}");
 }
 
 #[test]
 fn mounting_point_out_of_stroke() {
     // Rod end 0.3 m below the knee: the cylinder would need more than the 0.2 m stroke.
     let e = load(&replaced(r#"xyz="-0.05 0 -0.1"/>"#, r#"xyz="-0.05 0 -0.3"/>"#)).unwrap_err();
-    assert!(
-        matches!(&e, LegError::Unreachable { actuator, .. } if actuator == "knee_cylinder"),
-        "{e}"
-    );
+    assert!(matches!(&e, LegError::Unreachable { actuator, .. } if actuator == "knee_cylinder"), "{e}");
     println!("{e}");
     // Stroke too short for the knee range.
     let e = load(&replaced(r#"lower="0" upper="0.2""#, r#"lower="0.05" upper="0.1""#)).unwrap_err();

@@ -31,10 +31,7 @@ fn fdo_and_rbf_cut_steady_state_error_and_estimate_the_lumped_disturbance() {
     assert!(g_end > 0.0, "g_hat {g_end} should share the sign of D");
     let n = r.t_s.len();
     let g_a = r.rbf_output_n_per_s2[n - 200];
-    assert!(
-        (g_end - g_a).abs() < 0.05 * truth,
-        "g_hat still moving: {g_a} -> {g_end}"
-    );
+    assert!((g_end - g_a).abs() < 0.05 * truth, "g_hat still moving: {g_a} -> {g_end}");
 }
 
 #[test]
@@ -53,10 +50,7 @@ fn observer_limit_at_one_millisecond() {
     assert!(at(30_000.0, 1e-3).is_ok());
     match at(50_000.0, 1e-3) {
         Err(exoleg::Error::Diverged { state, .. }) => assert!(!state.is_empty()),
-        other => panic!(
-            "expected divergence, got {:?}",
-            other.map(|o| o.summary.max_abs_force_error_n)
-        ),
+        other => panic!("expected divergence, got {:?}", other.map(|o| o.summary.max_abs_force_error_n)),
     }
     assert!(at(50_000.0, 5e-4).is_ok());
 }

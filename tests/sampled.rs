@@ -33,11 +33,7 @@ fn arbfnn_fdo_znn_at_1khz_with_differenced_load_cell_is_unstable() {
     // lag of a differenced load-cell rate into a runaway at 1 kHz. With the supply-pressure
     // limit on, the force slams between the limits; without it, the run diverges.
     let out = common::run(&["controller.sample_period_s=0.001"]).summary;
-    assert!(
-        out.force_limit_fraction > 0.5,
-        "force at the pressure limit {}",
-        out.force_limit_fraction
-    );
+    assert!(out.force_limit_fraction > 0.5, "force at the pressure limit {}", out.force_limit_fraction);
     let s = common::scenario(&["controller.sample_period_s=0.001", "actuator.pressure_limit=false"]);
     assert!(matches!(exoleg::run(&s), Err(exoleg::Error::Diverged { .. })));
 }

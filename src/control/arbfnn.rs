@@ -20,11 +20,7 @@ pub struct RbfParams {
 
 impl Default for RbfParams {
     fn default() -> Self {
-        Self {
-            centres: [-2500.0, -1700.0, -900.0, 0.0, 900.0, 1700.0, 2500.0],
-            width: 1e3,
-            eta: 0.005,
-        }
+        Self { centres: [-2500.0, -1700.0, -900.0, 0.0, 900.0, 1700.0, 2500.0], width: 1e3, eta: 0.005 }
     }
 }
 

@@ -37,10 +37,7 @@ impl Controller for ErlSmc {
         let e_dot = r.rate - y.force_rate_n_per_s;
         let s = e_dot + self.delta * e;
         let accel = r.accel + self.delta * e_dot + self.k * s + self.zeta * s.tanh();
-        ControlOutput {
-            valve_command: self.model.invert(accel, y),
-            ..Default::default()
-        }
+        ControlOutput { valve_command: self.model.invert(accel, y), ..Default::default() }
     }
 
     fn derivatives(&self, _t: f64, _r: &RefSample, _y: &Measurement, _s: &[f64], _u: &ControlOutput, _ds: &mut [f64]) {}

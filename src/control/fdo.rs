@@ -14,10 +14,7 @@ pub struct ObserverParams {
 
 impl Default for ObserverParams {
     fn default() -> Self {
-        Self {
-            gain: 1.0,
-            exponent: 1.0 / 3.0,
-        }
+        Self { gain: 1.0, exponent: 1.0 / 3.0 }
     }
 }
 
@@ -50,11 +47,7 @@ impl Fdo {
         let r = self.p.exponent;
         let a = xi.abs().max(1e-300);
         let e = (-xi).exp();
-        let sig = if e.is_finite() {
-            2.0 * e / ((1.0 + e) * (1.0 + e))
-        } else {
-            0.0
-        };
+        let sig = if e.is_finite() { 2.0 * e / ((1.0 + e) * (1.0 + e)) } else { 0.0 };
         self.p.gain * (1.0 + r * a.powf(r - 1.0) + a.powf(1.0 / r - 1.0) / r + sig)
     }
 

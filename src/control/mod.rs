@@ -45,6 +45,8 @@ pub struct Measurement {
     pub piston_accel_m_s2: f64,
     /// Knee angle (rad) from the joint encoder (0 on the bench).
     pub knee_rad: f64,
+    /// Knee angular rate (rad/s): exact (continuous) or a filtered difference (sampled).
+    pub knee_rate_rad_s: f64,
 }
 
 /// What a controller outputs besides the command, for logging.
@@ -152,11 +154,9 @@ pub fn build(
 ) -> Box<dyn Controller> {
     match kind {
         ControllerKind::Znn => Box::new(Znn::new(model, gains.gamma, None)),
-        ControllerKind::ArbfnnFdoZnn => Box::new(Znn::new(
-            model,
-            gains.gamma,
-            Some((RbfNetwork::new(rbf.clone()), Fdo::new(obs.clone()))),
-        )),
+        ControllerKind::ArbfnnFdoZnn => {
+            Box::new(Znn::new(model, gains.gamma, Some((RbfNetwork::new(rbf.clone()), Fdo::new(obs.clone())))))
+        }
         ControllerKind::ErlSmc => Box::new(ErlSmc::new(model, gains.k, gains.delta, gains.zeta)),
     }
 }

@@ -23,11 +23,7 @@ pub struct Znn {
 impl Znn {
     /// A ZNN controller with design parameter `gamma` (1/s).
     pub fn new(model: NominalModel, gamma: f64, compensation: Option<(RbfNetwork, Fdo)>) -> Self {
-        Self {
-            model,
-            gamma,
-            compensation,
-        }
+        Self { model, gamma, compensation }
     }
 
     /// The desired dx2/dt of the ZNN design: xd_ddot - 2*gamma*(x2 - xd_dot) - gamma^2*(x1 - x_d).

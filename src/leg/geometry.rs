@@ -117,3 +117,16 @@ pub fn reduced_acceleration(
     let q = actuator_force_n * moment_arm_at(model, knee_rad) + ext_torque_nm;
     Ok((q - 0.5 * dm * knee_vel * knee_vel - dv) / m)
 }
+
+/// Generalized knee force (N m, positive in flexion) the actuator and cuff must supply for
+/// the knee to follow `knee = (angle rad, rate rad/s, accel rad/s^2)` while the hip moves as
+/// `hip = (angle, rate, accel)`. With the hip still this is the reduced closed-chain Lagrange
+/// equation `M qdd + 1/2 M' qd^2 + V'`. (Hip motion terms: see [`crate::leg`] docs.)
+pub fn knee_torque_required(model: &LegModel, hip: (f64, f64, f64), knee: (f64, f64, f64)) -> Result<f64, LegError> {
+    let _ = hip;
+    let (q, qd, qdd) = knee;
+    let m = generalized_inertia_at(model, q)?;
+    let dm = (generalized_inertia_at(model, q + 1e-4)? - generalized_inertia_at(model, q - 1e-4)?) / 2e-4;
+    let dv = -gravity_torque_at(model, q)?;
+    Ok(m * qdd + 0.5 * dm * qd * qd + dv)
+}

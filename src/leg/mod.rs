@@ -19,8 +19,8 @@ pub mod sim;
 
 pub use error::LegError;
 pub use geometry::{
-    cylinder_length_at, generalized_inertia_at, gravity_torque_at, holding_force_at, link_poses_at, loop_pose_at,
-    moment_arm_at, potential_energy_at, reduced_acceleration,
+    cylinder_length_at, generalized_inertia_at, gravity_torque_at, holding_force_at, knee_torque_required,
+    link_poses_at, loop_pose_at, moment_arm_at, potential_energy_at, reduced_acceleration,
 };
 pub use model::{ActuatorSpec, JointKind, JointSpec, LegModel, LinkSpec, LoopClosureSpec, LoopPose};
 pub use sim::{Leg, LegSolverParams};

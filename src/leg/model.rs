@@ -157,9 +157,7 @@ fn parse_vec3(text: &str, what: &str) -> Result<[f64; 3], LegError> {
         .collect::<Result<_, _>>()
         .map_err(|e| LegError::Urdf(format!("{what}: cannot parse '{text}': {e}")))?;
     if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
-        return Err(LegError::Urdf(format!(
-            "{what}: expected 3 finite numbers, got '{text}'"
-        )));
+        return Err(LegError::Urdf(format!("{what}: expected 3 finite numbers, got '{text}'")));
     }
     Ok([v[0], v[1], v[2]])
 }
@@ -200,10 +198,7 @@ impl LegModel {
     /// Load and validate a URDF file. `knee_joint` names the knee hinge (usually `"knee"`).
     pub fn from_urdf_file(path: impl AsRef<Path>, knee_joint: &str) -> Result<Self, LegError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| LegError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = std::fs::read_to_string(path).map_err(|source| LegError::Io { path: path.to_path_buf(), source })?;
         Self::from_urdf_str(&text, knee_joint)
     }
 
@@ -213,9 +208,7 @@ impl LegModel {
         let doc = roxmltree::Document::parse(text).map_err(|e| LegError::Xml(e.to_string()))?;
         let robot_el = doc.root_element();
         if robot_el.tag_name().name() != "robot" {
-            return Err(LegError::Missing {
-                what: "<robot> root element".into(),
-            });
+            return Err(LegError::Missing { what: "<robot> root element".into() });
         }
         // Pass 2: the standard URDF part.
         let robot = urdf_rs::read_from_string(text).map_err(|e| LegError::Urdf(e.to_string()))?;
@@ -229,10 +222,7 @@ impl LegModel {
             }
             let m = l.inertial.mass.value;
             if !(m.is_finite() && m > 0.0) {
-                return Err(LegError::NonPositiveMass {
-                    link: l.name.clone(),
-                    mass: m,
-                });
+                return Err(LegError::NonPositiveMass { link: l.name.clone(), mass: m });
             }
             let i = &l.inertial.inertia;
             let it = [[i.ixx, i.ixy, i.ixz], [i.ixy, i.iyy, i.iyz], [i.ixz, i.iyz, i.izz]];
@@ -244,10 +234,7 @@ impl LegModel {
                     + it[0][2] * (it[1][0] * it[2][1] - it[1][1] * it[2][0]),
             ];
             if !minors.iter().all(|x| x.is_finite() && *x > 0.0) {
-                return Err(LegError::InertiaNotPositiveDefinite {
-                    link: l.name.clone(),
-                    minors,
-                });
+                return Err(LegError::InertiaNotPositiveDefinite { link: l.name.clone(), minors });
             }
             let r = rpy_matrix(l.inertial.origin.rpy.0);
             let inertia = mat_mul(&mat_mul(&r, &it), &transpose(&r));
@@ -270,10 +257,7 @@ impl LegModel {
                 urdf_rs::JointType::Prismatic => JointKind::Prismatic,
                 urdf_rs::JointType::Fixed => JointKind::Fixed,
                 ref other => {
-                    return Err(LegError::Unsupported(format!(
-                        "joint '{}' has unsupported type {other:?}",
-                        j.name
-                    )))
+                    return Err(LegError::Unsupported(format!("joint '{}' has unsupported type {other:?}", j.name)))
                 }
             };
             let lookup = |n: &str, role: &str| {
@@ -306,11 +290,7 @@ impl LegModel {
             if kind != JointKind::Fixed && !(n.is_finite() && n > 1e-12) {
                 return Err(LegError::Urdf(format!("joint '{}' has a zero axis", j.name)));
             }
-            let axis = if n > 1e-12 {
-                [a[0] / n, a[1] / n, a[2] / n]
-            } else {
-                [1.0, 0.0, 0.0]
-            };
+            let axis = if n > 1e-12 { [a[0] / n, a[1] / n, a[2] / n] } else { [1.0, 0.0, 0.0] };
             let limits = if matches!(kind, JointKind::Revolute | JointKind::Prismatic) && j.limit.upper > j.limit.lower
             {
                 Some((j.limit.lower, j.limit.upper))
@@ -333,9 +313,7 @@ impl LegModel {
         // ---- tree check: exactly one root, everything reachable ----
         let roots: Vec<usize> = (0..links.len()).filter(|&l| parent_joint[l].is_none()).collect();
         if roots.is_empty() {
-            return Err(LegError::NotATree(
-                "no root link (every link has a parent: cycle)".into(),
-            ));
+            return Err(LegError::NotATree("no root link (every link has a parent: cycle)".into()));
         }
         if roots.len() > 1 {
             let names: Vec<&str> = roots.iter().map(|&r| links[r].name.as_str()).collect();
@@ -367,21 +345,17 @@ impl LegModel {
 
         // ---- extension elements ----
         let find_one = |tag: &str| -> Result<roxmltree::Node, LegError> {
-            let mut it = robot_el
-                .children()
-                .filter(|n| n.is_element() && n.tag_name().name() == tag);
-            let first = it.next().ok_or_else(|| LegError::Missing {
-                what: format!("<{tag}> element"),
-            })?;
+            let mut it = robot_el.children().filter(|n| n.is_element() && n.tag_name().name() == tag);
+            let first = it.next().ok_or_else(|| LegError::Missing { what: format!("<{tag}> element") })?;
             if it.next().is_some() {
                 return Err(LegError::Unsupported(format!("more than one <{tag}> element")));
             }
             Ok(first)
         };
         let attr = |n: &roxmltree::Node, a: &str, what: &str| -> Result<String, LegError> {
-            n.attribute(a).map(str::to_string).ok_or_else(|| LegError::Missing {
-                what: format!("attribute '{a}' of {what}"),
-            })
+            n.attribute(a)
+                .map(str::to_string)
+                .ok_or_else(|| LegError::Missing { what: format!("attribute '{a}' of {what}") })
         };
         let lc = find_one("loop_closure")?;
         let lc_name = attr(&lc, "name", "<loop_closure>")?;
@@ -391,14 +365,11 @@ impl LegModel {
             let el = lc
                 .children()
                 .find(|n| n.is_element() && n.tag_name().name() == tag)
-                .ok_or_else(|| LegError::Missing {
-                    what: format!("<{tag}> of loop_closure '{lc_name}'"),
-                })?;
+                .ok_or_else(|| LegError::Missing { what: format!("<{tag}> of loop_closure '{lc_name}'") })?;
             let lname = attr(&el, "name", &what)?;
-            let li = *link_idx.get(&lname).ok_or_else(|| LegError::UnknownLink {
-                element: what.clone(),
-                link: lname.clone(),
-            })?;
+            let li = *link_idx
+                .get(&lname)
+                .ok_or_else(|| LegError::UnknownLink { element: what.clone(), link: lname.clone() })?;
             let xyz = match el.attribute("xyz") {
                 Some(t) => parse_vec3(t, &format!("{what} xyz"))?,
                 None => [0.0; 3],
@@ -427,10 +398,7 @@ impl LegModel {
                 found: joints[rod].kind.name().into(),
             });
         }
-        let actuator = ActuatorSpec {
-            name: ha_name.clone(),
-            joint: rod,
-        };
+        let actuator = ActuatorSpec { name: ha_name.clone(), joint: rod };
 
         let knee = *joint_idx.get(knee_joint).ok_or_else(|| LegError::UnknownJoint {
             element: "knee joint parameter".into(),
@@ -653,10 +621,7 @@ impl LegModel {
     /// Solves the loop at a knee angle without checking the prismatic limits.
     pub(crate) fn loop_solution(&self, knee_rad: f64) -> Option<LoopPose> {
         let g = &self.geo;
-        let d = g
-            .knee_origin
-            .mul(&Pose2::rot(g.knee_sign * knee_rad))
-            .apply(g.shank_point);
+        let d = g.knee_origin.mul(&Pose2::rot(g.knee_sign * knee_rad)).apply(g.shank_point);
         let e = d.minus(g.barrel_origin.t);
         let rho = e.norm();
         let uv = g.u.dot(g.v);
@@ -671,12 +636,7 @@ impl LegModel {
         }
         let total = e.polar() - c.polar();
         let phi = wrap_pi(g.barrel_sign * (total - g.barrel_origin.a));
-        Some(LoopPose {
-            knee_rad,
-            barrel_rad: phi,
-            rod_m: s,
-            cylinder_length_m: rho,
-        })
+        Some(LoopPose { knee_rad, barrel_rad: phi, rod_m: s, cylinder_length_m: rho })
     }
 
     /// Loop solution with the prismatic-limit check, as an error naming the actuator.

@@ -60,10 +60,7 @@ pub struct Pose2 {
 
 impl Pose2 {
     /// Identity.
-    pub const IDENTITY: Pose2 = Pose2 {
-        t: P2::new(0.0, 0.0),
-        a: 0.0,
-    };
+    pub const IDENTITY: Pose2 = Pose2 { t: P2::new(0.0, 0.0), a: 0.0 };
     /// New pose.
     pub fn new(x: f64, z: f64, a: f64) -> Self {
         Self { t: P2::new(x, z), a }
@@ -78,10 +75,7 @@ impl Pose2 {
     }
     /// Composition `self * o` (apply `o` first).
     pub fn mul(&self, o: &Pose2) -> Pose2 {
-        Pose2 {
-            t: self.t.plus(o.t.rot(self.a)),
-            a: self.a + o.a,
-        }
+        Pose2 { t: self.t.plus(o.t.rot(self.a)), a: self.a + o.a }
     }
     /// Transform a point.
     pub fn apply(&self, p: P2) -> P2 {

@@ -26,10 +26,7 @@ pub struct LegSolverParams {
 
 impl Default for LegSolverParams {
     fn default() -> Self {
-        Self {
-            solver_iterations: 2,
-            pgs_iterations: 1,
-        }
+        Self { solver_iterations: 2, pgs_iterations: 1 }
     }
 }
 
@@ -59,10 +56,7 @@ pub struct Leg {
 }
 
 fn pose3(xyz: [f64; 3], rpy: [f64; 3]) -> Pose {
-    Pose::from_parts(
-        DVec3::from(xyz),
-        DQuat::from_euler(EulerRot::ZYX, rpy[2], rpy[1], rpy[0]),
-    )
+    Pose::from_parts(DVec3::from(xyz), DQuat::from_euler(EulerRot::ZYX, rpy[2], rpy[1], rpy[0]))
 }
 
 /// URDF joint -> Rapier generic joint. The Rapier joint frame's X axis is aligned with the URDF
@@ -76,11 +70,7 @@ fn to_generic(j: &JointSpec) -> GenericJoint {
         JointKind::Prismatic => JointAxesMask::LOCKED_PRISMATIC_AXES,
         JointKind::Fixed => JointAxesMask::LOCKED_FIXED_AXES,
     };
-    GenericJointBuilder::new(mask)
-        .local_frame1(origin * align)
-        .local_frame2(align)
-        .contacts_enabled(false)
-        .build()
+    GenericJointBuilder::new(mask).local_frame1(origin * align).local_frame2(align).contacts_enabled(false).build()
 }
 
 /// Index of the single free coordinate in `MultibodyJoint::coords()` (LinX = 0, AngX = 3).
@@ -164,11 +154,7 @@ impl Leg {
                         .transform_by(&offset[i]);
                 }
             }
-            let b = if a == model.root {
-                RigidBodyBuilder::fixed()
-            } else {
-                RigidBodyBuilder::dynamic()
-            };
+            let b = if a == model.root { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
             let rb = b.pose(poses[a]).additional_mass_properties(mp).can_sleep(false).build();
             let h = world.bodies.insert(rb);
             handle_of_anchor[a] = Some(h);
@@ -197,9 +183,7 @@ impl Leg {
             .local_anchor1(offset[c.link1] * anchor1)
             .local_anchor2(offset[c.link2] * anchor2)
             .contacts_enabled(false);
-        let closure = world
-            .impulse_joints
-            .insert(link_body[c.link1], link_body[c.link2], sj, true);
+        let closure = world.impulse_joints.insert(link_body[c.link1], link_body[c.link2], sj, true);
         let rod_child = model.joints[model.rod].child;
         let rod_anchor_is_1 = anchor[c.link1] == anchor[rod_child];
 
@@ -268,6 +252,29 @@ impl Leg {
             last_dknee: 0.0,
         };
         Ok(leg)
+    }
+
+    /// Set the knee rate (rad/s) and the barrel and rod rates the loop implies (from the
+    /// loop geometry), e.g. to start a gait run on its trajectory instead of at rest.
+    pub fn set_knee_velocity(&mut self, knee_rate_rad_s: f64) -> Result<(), LegError> {
+        let q = self.knee_angle_rad();
+        let h = 1e-6;
+        let qp = self.model.joint_coords(&self.model.loop_solution_checked(q + h)?);
+        let qm = self.model.joint_coords(&self.model.loop_solution_checked(q - h)?);
+        let joints: Vec<(usize, usize)> = [self.model.knee, self.model.barrel, self.model.rod]
+            .into_iter()
+            .zip([self.knee_link, self.barrel_link, self.rod_link])
+            .collect();
+        let mb = self.world.multibody_joints.get_multibody_mut(self.mb).unwrap();
+        let aids: Vec<(usize, usize)> =
+            joints.iter().map(|&(ji, lid)| (ji, mb.link(lid).unwrap().assembly_id())).collect();
+        let mut v = mb.generalized_velocity_mut();
+        for (ji, aid) in aids {
+            v[aid] = (qp[ji] - qm[ji]) / (2.0 * h) * knee_rate_rad_s;
+        }
+        mb.forward_kinematics(&self.world.bodies, false);
+        mb.update_rigid_bodies(&mut self.world.bodies, true);
+        Ok(())
     }
 
     /// The model this simulation was built from.
@@ -376,11 +383,7 @@ impl Leg {
             let pb = self.barrel_pivot_world();
             let u = (pr - pb).normalize_or_zero();
             let f = u * actuator_force_n;
-            let rod_body = if self.rod_anchor_is_1 {
-                self.model.closure.link1
-            } else {
-                self.model.closure.link2
-            };
+            let rod_body = if self.rod_anchor_is_1 { self.model.closure.link1 } else { self.model.closure.link2 };
             self.world.bodies[self.link_body[rod_body]].add_force_at_point(f, pr, true);
             let barrel_body = self.model.joints[self.model.barrel].child;
             self.world.bodies[self.link_body[barrel_body]].add_force_at_point(-f, pb, true);

@@ -44,21 +44,13 @@ pub fn stacked_png(path: &Path, title: &str, t_s: &[f64], panels: &[Panel]) -> R
     ensure_font();
     let (w, h) = (1200u32, 300 * panels.len() as u32 + 60);
     let mut buf = vec![0u8; (w * h * 3) as usize];
-    let perr = |e: String| Error::Write {
-        path: path.to_path_buf(),
-        message: format!("plot: {e}"),
-    };
+    let perr = |e: String| Error::Write { path: path.to_path_buf(), message: format!("plot: {e}") };
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| perr(e.to_string()))?;
-        let root = root
-            .titled(title, ("sans-serif", 22))
-            .map_err(|e| perr(e.to_string()))?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(|e| perr(e.to_string()))?;
         let areas = root.split_evenly((panels.len(), 1));
-        let (t0, t1) = (
-            t_s.first().copied().unwrap_or(0.0),
-            t_s.last().copied().unwrap_or(1.0).max(1e-9),
-        );
+        let (t0, t1) = (t_s.first().copied().unwrap_or(0.0), t_s.last().copied().unwrap_or(1.0).max(1e-9));
         for (area, p) in areas.iter().zip(panels) {
             let (lo, hi) = range(p);
             let mut chart = ChartBuilder::on(area)
@@ -77,10 +69,7 @@ pub fn stacked_png(path: &Path, title: &str, t_s: &[f64], panels: &[Panel]) -> R
             for (name, v, c) in &p.series {
                 let c = *c;
                 chart
-                    .draw_series(LineSeries::new(
-                        t_s.iter().copied().zip(v.iter().copied()),
-                        c.stroke_width(2),
-                    ))
+                    .draw_series(LineSeries::new(t_s.iter().copied().zip(v.iter().copied()), c.stroke_width(2)))
                     .map_err(|e| perr(e.to_string()))?
                     .label(*name)
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
@@ -119,19 +108,33 @@ pub fn force_tracking_png(path: &Path, r: &Record, title: &str) -> Result<()> {
         &[
             Panel {
                 y_label: "force (N)",
-                series: vec![
-                    ("F_d desired", &r.ref_force_n, BLACK),
-                    ("F_L load", &r.load_force_n, BLUE),
-                ],
+                series: vec![("F_d desired", &r.ref_force_n, BLACK), ("F_L load", &r.load_force_n, BLUE)],
             },
+            Panel { y_label: "error F_L - F_d (N)", series: vec![("tracking error", &r.force_error_n, RED)] },
+            Panel { y_label: "valve command u", series: vec![("u", &r.valve_command, RGBColor(0, 128, 0))] },
+        ],
+    )
+}
+
+/// Gait runs: desired vs actual knee angle, desired vs load force, and both errors.
+pub fn knee_tracking_png(path: &Path, r: &Record, title: &str) -> Result<()> {
+    let q = r.extra_column("knee_angle_deg").unwrap_or(&[]);
+    let qe: Vec<f64> = crate::metrics::knee_error_deg(r).unwrap_or_default();
+    stacked_png(
+        path,
+        title,
+        &r.t_s,
+        &[
             Panel {
-                y_label: "error F_L - F_d (N)",
-                series: vec![("tracking error", &r.force_error_n, RED)],
+                y_label: "knee flexion (deg)",
+                series: vec![("desired", &r.ref_knee_deg, BLACK), ("actual", q, BLUE)],
             },
+            Panel { y_label: "knee error (deg)", series: vec![("actual - desired", &qe, RED)] },
             Panel {
-                y_label: "valve command u",
-                series: vec![("u", &r.valve_command, RGBColor(0, 128, 0))],
+                y_label: "cylinder force (N)",
+                series: vec![("F_d desired", &r.ref_force_n, BLACK), ("F_L load", &r.load_force_n, BLUE)],
             },
+            Panel { y_label: "force error (N)", series: vec![("F_L - F_d", &r.force_error_n, RED)] },
         ],
     )
 }

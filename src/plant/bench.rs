@@ -28,11 +28,7 @@ pub struct BenchParams {
 
 impl Default for BenchParams {
     fn default() -> Self {
-        Self {
-            motion: BenchMotion::Still,
-            amplitude_m: 1e-4,
-            frequency_hz: 1.0,
-        }
+        Self { motion: BenchMotion::Still, amplitude_m: 1e-4, frequency_hz: 1.0 }
     }
 }
 
@@ -56,11 +52,7 @@ impl Plant for Bench {
                 let w = std::f64::consts::TAU * self.p.frequency_hz;
                 let (s, c) = (w * t_s).sin_cos();
                 let a = self.p.amplitude_m;
-                PistonMotion {
-                    position_m: a * s,
-                    velocity_m_s: a * w * c,
-                    accel_m_s2: -a * w * w * s,
-                }
+                PistonMotion { position_m: a * s, velocity_m_s: a * w * c, accel_m_s2: -a * w * w * s }
             }
         }
     }

@@ -24,8 +24,9 @@ pub struct LegParams {
     pub urdf: String,
     /// Name of the knee joint in the URDF. Default `knee`.
     pub knee_joint: String,
-    /// Initial knee flexion (deg), leg at rest. Default 30.
-    pub initial_knee_deg: f64,
+    /// Initial knee flexion (deg), leg at rest. Default: the gait reference's angle at t = 0,
+    /// or 30 deg for other references.
+    pub initial_knee_deg: Option<f64>,
     /// Rapier solver iterations (TGS substeps) per step. Default 2 (see README, "Leg solver"). 1..=64.
     pub solver_iterations: usize,
 }
@@ -35,7 +36,7 @@ impl Default for LegParams {
         Self {
             urdf: "builtin:exo_leg".into(),
             knee_joint: "knee".into(),
-            initial_knee_deg: 30.0,
+            initial_knee_deg: None,
             solver_iterations: LegSolverParams::default().solver_iterations,
         }
     }
@@ -52,11 +53,7 @@ impl LegParams {
         let candidates: Vec<PathBuf> = if p.is_absolute() {
             vec![p.to_path_buf()]
         } else {
-            base_dir
-                .map(|d| d.join(p))
-                .into_iter()
-                .chain(std::iter::once(p.to_path_buf()))
-                .collect()
+            base_dir.map(|d| d.join(p)).into_iter().chain(std::iter::once(p.to_path_buf())).collect()
         };
         let found = candidates.iter().find(|c| c.is_file()).ok_or_else(|| {
             let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
@@ -87,11 +84,7 @@ impl MassTable {
                 Ok(m / (arm * arm))
             })
             .collect::<Result<Vec<f64>>>()?;
-        Ok(Self {
-            lo_rad: lo,
-            step_rad: step,
-            kg,
-        })
+        Ok(Self { lo_rad: lo, step_rad: step, kg })
     }
 
     /// Linear interpolation, clamped to the table's range.
@@ -136,30 +129,38 @@ pub struct LegPlant {
 
 impl LegPlant {
     /// Build the plant from a loaded model at the scenario's initial knee angle.
-    pub fn new(model: LegModel, p: &LegParams, dt_s: f64, cuff_point: [f64; 3], source_name: &str) -> Result<Self> {
-        let params = LegSolverParams {
-            solver_iterations: p.solver_iterations,
-            ..Default::default()
-        };
-        let q0 = p.initial_knee_deg.to_radians();
-        let leg = Leg::with_params(&model, q0, dt_s, params)
-            .map_err(|e| Error::input(source_name, "leg.initial_knee_deg", e.to_string()))?;
+    pub fn new(
+        model: LegModel,
+        p: &LegParams,
+        initial_knee_rad: f64,
+        initial_knee_rate_rad_s: f64,
+        dt_s: f64,
+        cuff_point: [f64; 3],
+        source_name: &str,
+    ) -> Result<Self> {
+        let params = LegSolverParams { solver_iterations: p.solver_iterations, ..Default::default() };
+        let (q0, qd0) = (initial_knee_rad, initial_knee_rate_rad_s);
+        let bad = |e: crate::leg::LegError| Error::input(source_name, "leg.initial_knee_deg", e.to_string());
+        let mut leg = Leg::with_params(&model, q0, dt_s, params).map_err(bad)?;
+        if qd0 != 0.0 {
+            leg.set_knee_velocity(qd0).map_err(bad)?;
+        }
         let length0_m = leg.cylinder_length_m();
         let knee = model.knee_joint();
         let knee_axis = DVec3::from(knee.axis).normalize();
         let shank_link = knee.child;
         let mass = MassTable::new(&model)?;
-        // At rest: xc_ddot = dL/dtheta * theta_ddot (the velocity term vanishes).
-        let free_accel_m_s2 = moment_arm_at(&model, q0)
-            * reduced_acceleration(&model, q0, 0.0, 0.0, 0.0)
-                .map_err(|e| Error::input(source_name, "leg.initial_knee_deg", e.to_string()))?;
+        // xc_ddot = dL/dq * q_ddot + d(dL/dq)/dq * q_dot^2, with no cylinder force.
+        let arm = moment_arm_at(&model, q0);
+        let darm = (moment_arm_at(&model, q0 + 1e-5) - moment_arm_at(&model, q0 - 1e-5)) / 2e-5;
+        let free_accel_m_s2 = arm * reduced_acceleration(&model, q0, qd0, 0.0, 0.0).map_err(bad)? + darm * qd0 * qd0;
         Ok(Self {
             leg,
             model,
             mass,
             length0_m,
             length_m: length0_m,
-            velocity_m_s: 0.0,
+            velocity_m_s: arm * qd0,
             accel_m_s2: free_accel_m_s2,
             free_accel_m_s2,
             free_accel_trend_m_s2: 0.0,
@@ -228,6 +229,10 @@ impl Plant for LegPlant {
         self.leg.knee_angle_rad()
     }
 
+    fn knee_rate_rad_s(&self) -> f64 {
+        self.leg.knee_velocity_rad_s()
+    }
+
     fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64> {
         let q = self.leg.knee_angle_rad();
         // Interaction: positive w1 resists a lengthening surplus of the actuator, so it pushes
@@ -251,23 +256,13 @@ impl Plant for LegPlant {
         self.length_m += dl;
         self.max_gap_m = self.max_gap_m.max(self.leg.loop_gap_m());
         if !q1.is_finite() || !self.length_m.is_finite() || !v.is_finite() {
-            return Err(Error::Diverged {
-                time_s: t_s + dt_s,
-                state: "knee_angle_rad".into(),
-                value: q1,
-            });
+            return Err(Error::Diverged { time_s: t_s + dt_s, state: "knee_angle_rad".into(), value: q1 });
         }
         Ok(dl)
     }
 
     fn extra_names(&self) -> Vec<&'static str> {
-        vec![
-            "knee_angle_deg",
-            "knee_velocity_deg_s",
-            "cylinder_length_m",
-            "loop_closure_gap_m",
-            "moment_arm_m",
-        ]
+        vec!["knee_angle_deg", "knee_velocity_deg_s", "cylinder_length_m", "loop_closure_gap_m", "moment_arm_m"]
     }
 
     fn extra_values(&self, out: &mut Vec<f64>) {

@@ -82,6 +82,10 @@ pub trait Plant: Send {
     fn knee_rad(&self) -> f64 {
         0.0
     }
+    /// Knee angular rate (rad/s), 0 for plants without a knee.
+    fn knee_rate_rad_s(&self) -> f64 {
+        0.0
+    }
     /// Advance the mechanics from `t_s` to `t_s + dt_s` under a force constant over the step.
     /// Returns the change of cylinder length over the step (m), measured geometrically.
     fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64>;

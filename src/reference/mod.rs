@@ -4,7 +4,9 @@
 //! (the ZNN and ERL-SMC laws need `x_d`, `dx_d/dt`, `d^2x_d/dt^2`).
 
 mod gait;
+mod knee_force;
 pub use gait::*;
+pub use knee_force::*;
 
 use serde::Serialize;
 
@@ -51,12 +53,7 @@ mod tests {
 
     #[test]
     fn sine_derivatives_match_finite_differences() {
-        let s = Sine {
-            amplitude: 200.0,
-            frequency_hz: 2.0,
-            phase_rad: 0.3,
-            offset: 5.0,
-        };
+        let s = Sine { amplitude: 200.0, frequency_hz: 2.0, phase_rad: 0.3, offset: 5.0 };
         let (t, h) = (0.137, 1e-6);
         let a = s.at(t);
         let (p, m) = (s.at(t + h), s.at(t - h));

@@ -14,6 +14,7 @@ use crate::human::HumanParams;
 use crate::hydraulics::{ActuatorParams, FrictionParams, HydraulicParams};
 use crate::integrator::Integrator;
 use crate::plant::{BenchParams, LegParams, PlantKind};
+use crate::reference::{GaitCycle, GaitReference, BUILTIN_TRIALS};
 use crate::sensors::SensorParams;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -37,11 +38,7 @@ pub struct SimSection {
 
 impl Default for SimSection {
     fn default() -> Self {
-        Self {
-            dt_s: 0.001,
-            duration_s: 1.0,
-            integrator: Integrator::Ode3,
-        }
+        Self { dt_s: 0.001, duration_s: 1.0, integrator: Integrator::Ode3 }
     }
 }
 
@@ -65,22 +62,44 @@ impl Default for PlantSection {
 pub enum ReferenceKind {
     /// Desired force `offset_n + amplitude_n*sin(2*pi*frequency_hz*t + phase_rad)`.
     Sine,
+    /// A knee (and hip) gait trajectory; the desired force comes from the leg's inverse
+    /// dynamics plus an outer PD on the knee angle (leg plant only).
+    Gait,
 }
 
-/// `[reference]`: the desired load force.
+/// `[reference]`: the desired load force (`sine`) or knee trajectory (`gait`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ReferenceSection {
-    /// Default `sine`.
+    /// `sine` (default) or `gait`.
     pub kind: ReferenceKind,
-    /// Amplitude of the desired force (N). Default 200. >= 0.
+    /// Sine: amplitude of the desired force (N). Default 200. >= 0.
     pub amplitude_n: f64,
-    /// Frequency (Hz). Default 2. >= 0.
+    /// Sine: frequency (Hz). Default 2. >= 0.
     pub frequency_hz: f64,
-    /// Phase (rad). Default 0.
+    /// Sine: phase (rad). Default 0.
     pub phase_rad: f64,
-    /// Offset (N). Default 0.
+    /// Sine: offset (N). Default 0.
     pub offset_n: f64,
+    /// Gait: built-in trial (`wbds01_overground_comfortable` (default), `..._fast`, `..._slow`,
+    /// and the same for `wbds02`), used unless `gait_file` is set.
+    pub gait_trial: String,
+    /// Gait: a CSV with `gait_cycle_pct`, `knee_flexion_deg` (and `hip_flexion_deg`) columns,
+    /// looked up next to the scenario file first, then in the working directory.
+    pub gait_file: Option<String>,
+    /// Gait: stride (gait-cycle) time (s). Default: the trial's (comfortable 1.10, fast 0.95,
+    /// slow 1.30); required for a `gait_file` unless `cadence_steps_per_min` is given.
+    pub stride_s: Option<f64>,
+    /// Gait: cadence (steps/min, two steps per stride); alternative to `stride_s`.
+    pub cadence_steps_per_min: Option<f64>,
+    /// Gait: harmonics of the periodic Fourier fit of the angles. Default 12. 1..=40.
+    pub harmonics: usize,
+    /// Gait: drive the thigh along the trial's hip angle. Default false.
+    pub drive_hip: bool,
+    /// Gait: outer-loop proportional gain on the knee angle error (N m/rad). Default 400. >= 0.
+    pub knee_kp_nm_per_rad: f64,
+    /// Gait: outer-loop derivative gain on the knee rate error (N m s/rad). Default 15. >= 0.
+    pub knee_kd_nm_s_per_rad: f64,
 }
 
 impl Default for ReferenceSection {
@@ -91,7 +110,65 @@ impl Default for ReferenceSection {
             frequency_hz: 2.0,
             phase_rad: 0.0,
             offset_n: 0.0,
+            gait_trial: "wbds01_overground_comfortable".into(),
+            gait_file: None,
+            stride_s: None,
+            cadence_steps_per_min: None,
+            harmonics: 12,
+            drive_hip: false,
+            knee_kp_nm_per_rad: 400.0,
+            knee_kd_nm_s_per_rad: 15.0,
         }
+    }
+}
+
+impl ReferenceSection {
+    /// Load the gait trajectory this section describes. `base_dir`: the scenario's directory.
+    pub fn gait(&self, source_name: &str, base_dir: Option<&Path>) -> Result<GaitReference> {
+        let (cycle, default_stride) = match &self.gait_file {
+            Some(file) => {
+                let p = Path::new(file);
+                let candidates: Vec<std::path::PathBuf> = if p.is_absolute() {
+                    vec![p.to_path_buf()]
+                } else {
+                    base_dir.map(|d| d.join(p)).into_iter().chain(std::iter::once(p.to_path_buf())).collect()
+                };
+                let found = candidates.iter().find(|c| c.is_file()).ok_or_else(|| {
+                    let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+                    Error::input(source_name, "reference.gait_file", format!("not found (tried {})", tried.join(", ")))
+                })?;
+                let text = std::fs::read_to_string(found)
+                    .map_err(|e| Error::Read { path: found.clone(), message: e.to_string() })?;
+                (GaitCycle::parse(&found.display().to_string(), &text, self.harmonics)?, None)
+            }
+            None => match GaitCycle::builtin(&self.gait_trial, self.harmonics) {
+                Some(r) => {
+                    let (c, s) = r?;
+                    (c, Some(s))
+                }
+                None => {
+                    let names: Vec<&str> = BUILTIN_TRIALS.iter().map(|t| t.0).collect();
+                    return Err(Error::input(
+                        source_name,
+                        "reference.gait_trial",
+                        format!("unknown trial `{}` (built-in: {})", self.gait_trial, names.join(", ")),
+                    ));
+                }
+            },
+        };
+        let stride_s = match (self.stride_s, self.cadence_steps_per_min, default_stride) {
+            (Some(s), _, _) => s,
+            (None, Some(c), _) => 120.0 / c,
+            (None, None, Some(s)) => s,
+            (None, None, None) => {
+                return Err(Error::input(
+                    source_name,
+                    "reference.stride_s",
+                    "a gait_file gives no timing: set reference.stride_s or reference.cadence_steps_per_min",
+                ))
+            }
+        };
+        Ok(GaitReference { cycle, stride_s })
     }
 }
 
@@ -271,10 +348,8 @@ impl Scenario {
             ),
             Some(p) => {
                 let name = p.display().to_string();
-                let text = std::fs::read_to_string(p).map_err(|e| Error::Read {
-                    path: p.to_path_buf(),
-                    message: e.to_string(),
-                })?;
+                let text = std::fs::read_to_string(p)
+                    .map_err(|e| Error::Read { path: p.to_path_buf(), message: e.to_string() })?;
                 let table = if p.extension().is_some_and(|e| e == "json") {
                     overrides::parse_json(&name, &text)?
                 } else {
@@ -296,11 +371,7 @@ impl Scenario {
         for s in sets {
             overrides::apply_set(&mut table, s)?;
         }
-        let source = if sets.is_empty() {
-            name.clone()
-        } else {
-            format!("{name} (with --set)")
-        };
+        let source = if sets.is_empty() { name.clone() } else { format!("{name} (with --set)") };
         let file: ScenarioFile = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(|e| {
             let key = e.path().to_string();
             let msg = e.into_inner().to_string();
@@ -309,11 +380,7 @@ impl Scenario {
             Error::input(&source, if key == "." { String::new() } else { key }, msg)
         })?;
         validate::validate(&source, &file)?;
-        Ok(Scenario {
-            source_name: source,
-            base_dir: None,
-            file,
-        })
+        Ok(Scenario { source_name: source, base_dir: None, file })
     }
 
     /// Same scenario with overrides applied on top (used by `compare` and sweeps).
@@ -323,18 +390,12 @@ impl Scenario {
             _ => return Err(Error::input(&self.source_name, "", "cannot re-serialise scenario")),
         };
         let s = Self::from_table(self.source_name.clone(), table, sets)?;
-        Ok(Scenario {
-            base_dir: self.base_dir.clone(),
-            ..s
-        })
+        Ok(Scenario { base_dir: self.base_dir.clone(), ..s })
     }
 
     /// Convergence band (N): the scenario's, or 1% of the reference amplitude.
     pub fn convergence_band_n(&self) -> f64 {
-        self.file
-            .metrics
-            .convergence_band_n
-            .unwrap_or(0.01 * self.file.reference.amplitude_n)
+        self.file.metrics.convergence_band_n.unwrap_or(0.01 * self.file.reference.amplitude_n)
     }
 
     /// Number of fixed steps in the run.

@@ -34,10 +34,7 @@ pub(super) fn parse_json(name: &str, text: &str) -> Result<toml::Table> {
 fn strip_nulls(v: serde_json::Value) -> serde_json::Value {
     match v {
         serde_json::Value::Object(m) => serde_json::Value::Object(
-            m.into_iter()
-                .filter(|(_, v)| !v.is_null())
-                .map(|(k, v)| (k, strip_nulls(v)))
-                .collect(),
+            m.into_iter().filter(|(_, v)| !v.is_null()).map(|(k, v)| (k, strip_nulls(v))).collect(),
         ),
         serde_json::Value::Array(a) => serde_json::Value::Array(a.into_iter().map(strip_nulls).collect()),
         other => other,
@@ -67,17 +64,11 @@ pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
             cur.insert(p.to_string(), value);
             return Ok(());
         }
-        let entry = cur
-            .entry(p.to_string())
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let entry = cur.entry(p.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
         cur = match entry {
             toml::Value::Table(t) => t,
             _ => {
-                return Err(Error::input(
-                    "--set",
-                    key,
-                    format!("`{}` is not a table", parts[..=i].join(".")),
-                ));
+                return Err(Error::input("--set", key, format!("`{}` is not a table", parts[..=i].join("."))));
             }
         };
     }

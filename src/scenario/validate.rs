@@ -6,6 +6,7 @@ use crate::error::{Error, Result};
 use crate::human::HumanMode;
 use crate::hydraulics::ActuatorMode;
 use crate::plant::PlantKind;
+use crate::scenario::ReferenceKind;
 
 /// Find the first non-finite float anywhere in the scenario, with its dotted path.
 fn first_non_finite(v: &toml::Value, path: &mut Vec<String>) -> Option<(String, f64)> {
@@ -74,10 +75,7 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     c.positive("sim.dt_s", f.sim.dt_s)?;
     c.positive("sim.duration_s", f.sim.duration_s)?;
     if f.sim.duration_s / f.sim.dt_s > 1e9 {
-        return Err(c.fail(
-            "sim.duration_s",
-            "more than 1e9 steps: increase sim.dt_s or shorten the run",
-        ));
+        return Err(c.fail("sim.duration_s", "more than 1e9 steps: increase sim.dt_s or shorten the run"));
     }
 
     let h = &f.hydraulics;
@@ -111,6 +109,26 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     c.non_negative("bench.amplitude_m", f.bench.amplitude_m)?;
     c.positive("bench.frequency_hz", f.bench.frequency_hz)?;
     c.non_negative("reference.amplitude_n", f.reference.amplitude_n)?;
+    let rf = &f.reference;
+    if rf.kind == ReferenceKind::Gait {
+        if f.plant.kind != PlantKind::Leg {
+            return Err(c.fail("reference.kind", "`gait` drives a knee: it needs plant.kind = \"leg\""));
+        }
+        if rf.stride_s.is_some() && rf.cadence_steps_per_min.is_some() {
+            return Err(c.fail("reference.cadence_steps_per_min", "give reference.stride_s or the cadence, not both"));
+        }
+    }
+    if let Some(v) = rf.stride_s {
+        c.positive("reference.stride_s", v)?;
+    }
+    if let Some(v) = rf.cadence_steps_per_min {
+        c.positive("reference.cadence_steps_per_min", v)?;
+    }
+    if !(1..=40).contains(&rf.harmonics) {
+        return Err(c.fail("reference.harmonics", format!("must be 1..=40, got {}", rf.harmonics)));
+    }
+    c.non_negative("reference.knee_kp_nm_per_rad", rf.knee_kp_nm_per_rad)?;
+    c.non_negative("reference.knee_kd_nm_s_per_rad", rf.knee_kd_nm_s_per_rad)?;
     c.non_negative("reference.frequency_hz", f.reference.frequency_hz)?;
 
     let ct = &f.controller;
@@ -135,10 +153,7 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     c.positive("controller.rbf.eta", ct.rbf.eta)?;
     c.positive("controller.observer.gain", ct.observer.gain)?;
     if !(ct.observer.exponent > 0.0 && ct.observer.exponent < 1.0) {
-        return Err(c.fail(
-            "controller.observer.exponent",
-            format!("must be in (0, 1), got {}", ct.observer.exponent),
-        ));
+        return Err(c.fail("controller.observer.exponent", format!("must be in (0, 1), got {}", ct.observer.exponent)));
     }
     let n = &ct.nominal;
     for (k, v) in [
@@ -154,10 +169,7 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
             c.positive(k, v)?;
         }
     }
-    for (k, v) in [
-        ("controller.nominal.k_c", n.k_c),
-        ("controller.nominal.leakage", n.leakage),
-    ] {
+    for (k, v) in [("controller.nominal.k_c", n.k_c), ("controller.nominal.leakage", n.leakage)] {
         if let Some(v) = v {
             c.non_negative(k, v)?;
         }
@@ -182,26 +194,19 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     c.non_negative("actuator.valve_command_limit", f.actuator.valve_command_limit)?;
     c.non_negative("actuator.spool_limit_m", f.actuator.spool_limit_m)?;
     if f.actuator.mode != ActuatorMode::Hydraulic && f.plant.kind == PlantKind::Bench {
-        return Err(c.fail(
-            "actuator.mode",
-            "`force` and `free` drive a leg; the bench has no mechanics to drive",
-        ));
+        return Err(c.fail("actuator.mode", "`force` and `free` drive a leg; the bench has no mechanics to drive"));
     }
     signal(&c, "disturbance.force_rate", &f.disturbance.force_rate)?;
     signal(&c, "disturbance.force_accel", &f.disturbance.force_accel)?;
     signal(&c, "disturbance.spool", &f.disturbance.spool)?;
 
     if !(1..=64).contains(&f.leg.solver_iterations) {
-        return Err(c.fail(
-            "leg.solver_iterations",
-            format!("must be 1..=64, got {}", f.leg.solver_iterations),
-        ));
+        return Err(c.fail("leg.solver_iterations", format!("must be 1..=64, got {}", f.leg.solver_iterations)));
     }
     if f.human.mode == HumanMode::Cuff && f.plant.kind == PlantKind::Bench {
-        return Err(c.fail(
-            "human.mode",
-            "`cuff` needs a leg to strap to; use `paper` or `off` with plant.kind = \"bench\"",
-        ));
+        return Err(
+            c.fail("human.mode", "`cuff` needs a leg to strap to; use `paper` or `off` with plant.kind = \"bench\"")
+        );
     }
     if let Some(b) = f.metrics.convergence_band_n {
         c.positive("metrics.convergence_band_n", b)?;

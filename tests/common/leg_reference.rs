@@ -92,15 +92,7 @@ impl RefModel {
                         .unwrap()
                         .parse()
                         .unwrap();
-                    bodies.insert(
-                        n.attribute("name").unwrap().to_string(),
-                        Body {
-                            m,
-                            cx: xyz[0],
-                            cz: xyz[2],
-                            iyy,
-                        },
-                    );
+                    bodies.insert(n.attribute("name").unwrap().to_string(), Body { m, cx: xyz[0], cz: xyz[2], iyy });
                 }
                 "joint" => {
                     let o = n.children().find(|c| c.has_tag_name("origin")).unwrap();
@@ -113,12 +105,7 @@ impl RefModel {
                         .unwrap_or([1.0, 0.0, 0.0]);
                     joints.insert(
                         n.attribute("name").unwrap().to_string(),
-                        Jnt {
-                            x: xyz[0],
-                            z: xyz[2],
-                            pitch: rpy[1],
-                            axis,
-                        },
+                        Jnt { x: xyz[0], z: xyz[2], pitch: rpy[1], axis },
                     );
                 }
                 "loop_closure" => {
@@ -175,33 +162,17 @@ impl RefModel {
         let an = self.j("ankle");
         let b = self.j("barrel_pivot");
         let r = self.j("rod_slide");
-        let shank = P {
-            x: k.x,
-            z: k.z,
-            a: k.axis[1] * th,
-        };
-        let foot = shank.mul(&P {
-            x: an.x,
-            z: an.z,
-            a: an.pitch,
-        });
+        let shank = P { x: k.x, z: k.z, a: k.axis[1] * th };
+        let foot = shank.mul(&P { x: an.x, z: an.z, a: an.pitch });
         let (ex, ez) = self.rod_end(th);
         let (dx, dz) = (ex - b.x, ez - b.z);
         let len = (dx * dx + dz * dz).sqrt();
         // barrel frame angle: rotates the rod axis direction (in barrel frame) onto the pivot->rod end line
         let beta = dx.atan2(dz) - r.axis[0].atan2(r.axis[2]);
-        let barrel = P {
-            x: b.x,
-            z: b.z,
-            a: beta,
-        };
+        let barrel = P { x: b.x, z: b.z, a: beta };
         let o_along = r.x * r.axis[0] + r.z * r.axis[2];
         let s = len - o_along;
-        let rod = barrel.mul(&P {
-            x: r.x + s * r.axis[0],
-            z: r.z + s * r.axis[2],
-            a: 0.0,
-        });
+        let rod = barrel.mul(&P { x: r.x + s * r.axis[0], z: r.z + s * r.axis[2], a: 0.0 });
         vec![("shank", shank), ("foot", foot), ("barrel", barrel), ("rod", rod)]
     }
 
@@ -283,11 +254,7 @@ pub fn maxima(samples: &[(f64, f64)]) -> Vec<f64> {
         if y1 > y0 && y1 >= y2 {
             let h = samples[i + 1].0 - samples[i].0;
             let denom = y0 - 2.0 * y1 + y2;
-            let off = if denom.abs() > 0.0 {
-                0.5 * (y0 - y2) / denom
-            } else {
-                0.0
-            };
+            let off = if denom.abs() > 0.0 { 0.5 * (y0 - y2) / denom } else { 0.0 };
             t.push(samples[i].0 + off * h);
         }
     }

@@ -5,10 +5,8 @@ use exoleg::{RunOutput, Scenario};
 
 /// The embedded default scenario (paper Figure 5 case) moved to the bench plant, with overrides.
 pub fn scenario(sets: &[&str]) -> Scenario {
-    let sets: Vec<String> = std::iter::once("plant.kind=\"bench\"")
-        .chain(sets.iter().copied())
-        .map(String::from)
-        .collect();
+    let sets: Vec<String> =
+        std::iter::once("plant.kind=\"bench\"").chain(sets.iter().copied()).map(String::from).collect();
     Scenario::load(None, &sets).expect("scenario")
 }
 

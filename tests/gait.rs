@@ -1,0 +1,144 @@
+//! Gait-trajectory runs: joint-angle and force tracking tested together (shipped scenarios).
+
+use exoleg::{RunOutput, Scenario};
+use std::path::Path;
+
+fn scenario(file: &str, sets: &[&str]) -> Scenario {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios").join(file);
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    Scenario::load(Some(&p), &sets).unwrap()
+}
+
+fn run(file: &str, sets: &[&str]) -> RunOutput {
+    exoleg::run(&scenario(file, sets)).unwrap()
+}
+
+#[test]
+fn comfortable_walking_tracks_knee_and_force_without_saturation() {
+    let s = scenario("gait_walk.toml", &[]);
+    assert_eq!(s.file.metrics.settle_s, 1.10, "settle window = one stride");
+    let out = exoleg::run(&s).unwrap().summary;
+    let (rms, max) = (out.knee_rms_error_deg.unwrap(), out.knee_max_abs_error_deg.unwrap());
+    println!(
+        "comfortable: knee RMS {rms:.4} deg, max {max:.4} deg; force RMS {:.3} N, max {:.3} N; peak force {:.1} N, power {:.1} W",
+        out.rms_force_error_after_settle_n,
+        out.max_abs_force_error_after_settle_n,
+        out.peak_cylinder_force_n,
+        out.peak_power_w
+    );
+    assert!(rms < 1.0 && max < 3.0, "knee RMS {rms} max {max}");
+    assert!(out.rms_force_error_after_settle_n < 5.0);
+    assert_eq!(out.valve_saturation_fraction, 0.0);
+    assert_eq!(out.force_limit_fraction, 0.0);
+    assert_eq!(out.strides.len(), 5);
+    // The actuator does real work: the swing needs hundreds of newtons.
+    assert!(out.peak_cylinder_force_n > 100.0 && out.peak_cylinder_force_n < 2600.0);
+}
+
+#[test]
+fn fast_walking_keeps_the_knee_within_5_deg() {
+    let out = run("gait_walk_fast.toml", &[]).summary;
+    let max = out.knee_max_abs_error_deg.unwrap();
+    println!(
+        "fast: knee RMS {:.4} deg, max {max:.4} deg; force RMS {:.3} N, max {:.3} N",
+        out.knee_rms_error_deg.unwrap(),
+        out.rms_force_error_after_settle_n,
+        out.max_abs_force_error_after_settle_n
+    );
+    assert!(max < 5.0, "knee max {max}");
+}
+
+#[test]
+fn degraded_interaction_and_disturbances_make_errors_worse_but_stay_stable() {
+    let k = |s: &exoleg::metrics::Summary| s.knee_rms_error_deg.unwrap();
+    let f = |s: &exoleg::metrics::Summary| s.rms_force_error_after_settle_n;
+    // The pilot's cuff force resists force surpluses (w1 = k_p e + k_d e_dot against the
+    // surplus): a strongly coupled pilot (k_p = 4) holds the knee closer than the nominal
+    // one (0.05); degrading the coupling to the nominal gains lets force errors move the knee.
+    let strong = run("gait_walk.toml", &["human.k_p=4.0"]).summary;
+    let base = run("gait_walk.toml", &[]).summary;
+    let none = run("gait_walk.toml", &["human.mode=\"off\""]).summary;
+    // The paper's disturbances on dx2/dt (small next to gait forces), and a 20,000 N/s^2 step.
+    let paper_dist = [
+        "disturbance.state_gain_force=0.05",
+        "disturbance.state_gain_force_rate=1e-3",
+        "disturbance.force_accel=[{kind=\"sine\"},{kind=\"constant\",value=1.0},{kind=\"exp_decay\",rate_per_s=0.1}]",
+    ];
+    let paper = run("gait_walk.toml", &paper_dist).summary;
+    let step =
+        run("gait_walk.toml", &["disturbance.force_accel=[{kind=\"step\",amplitude=20000.0,time_s=2.0}]"]).summary;
+    let plain_znn = run("gait_walk.toml", &["controller.kind=\"znn\""]).summary;
+    let plain_znn_paper = run("gait_walk.toml", &[&["controller.kind=\"znn\""][..], &paper_dist].concat()).summary;
+    println!(
+        "knee RMS (deg): strong pilot {:.5}, nominal {:.5}, no pilot {:.5}, paper dist {:.5}, step {:.5}",
+        k(&strong),
+        k(&base),
+        k(&none),
+        k(&paper),
+        k(&step)
+    );
+    println!(
+        "force RMS (N): strong {:.4}, nominal {:.4}, none {:.4}, paper dist {:.6} (vs {:.6}), step {:.4}; plain ZNN {:.5} -> {:.5}",
+        f(&strong), f(&base), f(&none), f(&paper), f(&base), f(&step), f(&plain_znn), f(&plain_znn_paper)
+    );
+    assert!(k(&base) > 1.1 * k(&strong), "weaker coupling should move the knee more");
+    assert!(f(&base) > 1.1 * f(&strong));
+    assert!(f(&paper) > f(&base) && k(&paper) > k(&base), "paper disturbances must not help");
+    assert!(f(&plain_znn_paper) > f(&plain_znn));
+    assert!(f(&step) > f(&base), "a 20,000 N/s^2 step must cost something");
+    for s in [&strong, &base, &none, &paper, &step] {
+        assert!(k(s) < 1.0 && s.max_abs_force_error_after_settle_n < 50.0, "stable run expected");
+    }
+}
+
+#[test]
+fn user_gait_csv_with_another_cadence() {
+    // A user's file: 51 rows (every 2 %), its own header order, last row closing the cycle,
+    // run through --set with a cadence instead of a stride time.
+    let src = exoleg::reference::BUILTIN_TRIALS[2].1; // wbds01 slow
+    let mut rdr = csv::Reader::from_reader(src.as_bytes());
+    let mut text = String::from("knee_flexion_deg,gait_cycle_pct,hip_flexion_deg\n");
+    for (i, r) in rdr.records().enumerate() {
+        let r = r.unwrap();
+        if i % 2 == 0 {
+            text.push_str(&format!("{},{},{}\n", &r[2], &r[0], &r[1]));
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("my_walk.csv");
+    std::fs::write(&path, text).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_exoleg"))
+        .args([
+            "run",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/gait_walk.toml").to_str().unwrap(),
+            "--out",
+            dir.path().join("out").to_str().unwrap(),
+            "--set",
+            &format!("reference.gait_file=\"{}\"", path.display()),
+            "--set",
+            "reference.cadence_steps_per_min=96.0",
+            "--set",
+            "sim.duration_s=3.75",
+            "--set",
+            "metrics.settle_s=1.25",
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let js: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("out/summary.json")).unwrap()).unwrap();
+    let strides = js["strides"].as_array().unwrap();
+    assert_eq!(strides.len(), 3, "3.75 s at 1.25 s per stride (96 steps/min)");
+    assert!(js["knee_rms_error_deg"].as_f64().unwrap() < 1.0);
+    assert!(dir.path().join("out/knee_tracking.png").is_file());
+
+    // Without any timing the error names the key.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_exoleg"))
+        .args(["run", "--out", dir.path().join("o2").to_str().unwrap()])
+        .args(["--set", "reference.kind=\"gait\"", "--set", &format!("reference.gait_file=\"{}\"", path.display())])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("reference.stride_s"));
+}
