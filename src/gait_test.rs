@@ -61,7 +61,10 @@ impl GaitTest {
             None => Ok(s),
             Some(n) => {
                 let stride = s.file.reference.gait(&s.source_name, s.base_dir.as_deref())?.stride_s;
-                s.with_sets(&[format!("sim.duration_s={:?}", n as f64 * stride), format!("metrics.settle_s={stride:?}")])
+                s.with_sets(&[
+                    format!("sim.duration_s={:?}", n as f64 * stride),
+                    format!("metrics.settle_s={stride:?}"),
+                ])
             }
         }
     }

@@ -35,7 +35,7 @@ use crate::hydraulics::{
 };
 use crate::leg::LegModel;
 use crate::metrics::{self, Summary};
-use crate::plant::{Bench, LegPlant, PistonMotion, PistonPredictor, Plant, PlantInputs, PlantKind};
+use crate::plant::{Bench, LegPlant, LegStart, PistonMotion, PistonPredictor, Plant, PlantInputs, PlantKind};
 use crate::reference::{KneeForceReference, RefSample, Sine};
 use crate::scenario::{ReferenceKind, Scenario};
 use crate::sensors::{SampledSensors, Truth};
@@ -226,6 +226,14 @@ impl Model<'_> {
         match &self.reference {
             ForceRef::Knee(k) => Some(k.0.gait.knee_at(t)),
             ForceRef::Sine(_) => None,
+        }
+    }
+
+    /// The driven hip's trajectory (rad), if the reference drives the hip.
+    fn hip_reference(&self, t: f64) -> Option<RefSample> {
+        match &self.reference {
+            ForceRef::Knee(k) if k.0.drives_hip() => Some(k.0.gait.hip_at(t)),
+            _ => None,
         }
     }
 
@@ -474,7 +482,8 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
                 (None, Some(k)) => (k.value, k.rate),
                 (None, None) => (30f64.to_radians(), 0.0),
             };
-            Box::new(LegPlant::new(lm, &f.leg, q0, qd0, f.sim.dt_s, f.human.cuff_xyz, src)?)
+            let start = LegStart { knee_rad: q0, knee_rate_rad_s: qd0, hip: model.hip_reference(0.0) };
+            Box::new(LegPlant::new(lm, &f.leg, start, f.sim.dt_s, f.human.cuff_xyz, src)?)
         }
     };
     let dt = f.sim.dt_s;
@@ -593,8 +602,11 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
             Some(p) => p.effective_mass_kg * ((x[4] - x_start[4]) / dt - p.free_accel_m_s2),
             None => model.cylinder_force(&x_start, v0, &r0),
         };
-        let inputs =
-            PlantInputs { cylinder_force_n, cuff_force_n: if model.human.mode == HumanMode::Cuff { w1 } else { 0.0 } };
+        let inputs = PlantInputs {
+            cylinder_force_n,
+            cuff_force_n: if model.human.mode == HumanMode::Cuff { w1 } else { 0.0 },
+            hip_target_rad: model.hip_reference(t + dt).map(|h| h.value),
+        };
         let stroke = plant.advance(t, dt, &inputs)?;
         if hydraulic {
             // Stroke the force ODE did not see: the oil spring acts on the geometric change.

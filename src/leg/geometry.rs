@@ -118,15 +118,150 @@ pub fn reduced_acceleration(
     Ok((q - 0.5 * dm * knee_vel * knee_vel - dv) / m)
 }
 
-/// Generalized knee force (N m, positive in flexion) the actuator and cuff must supply for
-/// the knee to follow `knee = (angle rad, rate rad/s, accel rad/s^2)` while the hip moves as
-/// `hip = (angle, rate, accel)`. With the hip still this is the reduced closed-chain Lagrange
-/// equation `M qdd + 1/2 M' qd^2 + V'`. (Hip motion terms: see [`crate::leg`] docs.)
-pub fn knee_torque_required(model: &LegModel, hip: (f64, f64, f64), knee: (f64, f64, f64)) -> Result<f64, LegError> {
-    let _ = hip;
-    let (q, qd, qdd) = knee;
-    let m = generalized_inertia_at(model, q)?;
-    let dm = (generalized_inertia_at(model, q + 1e-4)? - generalized_inertia_at(model, q - 1e-4)?) / 2e-4;
-    let dv = -gravity_torque_at(model, q)?;
-    Ok(m * qdd + 0.5 * dm * qd * qd + dv)
+// ---------------------------------------------------------------------------------------------
+// Moving hip: generalized coordinates q = (theta_h, theta_k).
+//
+// The whole planar leg (thigh = URDF root, shank + foot, barrel, rod) turns rigidly about the
+// world y axis through the hip (world origin). Hip flexion `theta_h` is positive when the thigh
+// swings forward (the knee moves to +x for a person facing +x). With the right-handed rotation
+// about +y used by [`Pose2`] (`x' = x cos a + z sin a`, `z' = -x sin a + z cos a`) a positive
+// angle moves a point below the hip to -x, so hip flexion is the rotation by `a = -theta_h`
+// about +y (equivalently `+theta_h` about -y; the Rapier hip joint axis is -y):
+//
+//     world pose of link i = Rot_y(-theta_h) * P_i(theta_k)        (P_i from `link_poses_at`)
+//
+// Kinetic energy, with c_i(theta_k) the CoM and alpha_i(theta_k) the pitch of link i in the
+// thigh frame, c' = dc/dtheta_k, alpha' = dalpha/dtheta_k (numerical, loop kinematics):
+//
+//     T = 1/2 (M_hh thd_h^2 + 2 M_hk thd_h thd_k + M_kk thd_k^2)
+//     M_hh = sum m |c|^2 + Iyy
+//     M_hk = -sum m (c_z c'_x - c_x c'_z) + Iyy alpha'
+//     M_kk = sum m |c'|^2 + Iyy alpha'^2            (= `generalized_inertia_at`)
+//
+// (all three depend on theta_k only). Lagrange, knee row (the M_hk' thd_h thd_k terms cancel):
+//
+//     tau_k = M_kk thdd_k + M_hk thdd_h + 1/2 M_kk' thd_k^2 - 1/2 M_hh' thd_h^2 + dV/dtheta_k
+//
+// hip row:
+//
+//     tau_h = M_hh thdd_h + M_hk thdd_k + M_hh' thd_h thd_k + M_hk' thd_k^2 + dV/dtheta_h
+//
+// with V(theta_h, theta_k) = sum m g z_i, z_i = c_x sin(theta_h) + c_z cos(theta_h).
+// ---------------------------------------------------------------------------------------------
+
+/// Step for derivatives of the mass-matrix entries with respect to the knee angle, rad.
+const H_DM: f64 = 1e-4;
+
+/// Planar world pose of a thigh-frame pose after hip flexion `hip_rad` (rad, flexion positive =
+/// thigh forward): `Rot_y(-hip_rad) * p`.
+pub fn hip_rotated(hip_rad: f64, p: &Pose2) -> Pose2 {
+    Pose2::rot(-hip_rad).mul(p)
+}
+
+/// Link poses (x, z in m, pitch about +y in rad) in the world frame for hip flexion `hip_rad` and
+/// knee flexion `knee_rad` (rad), indexed like [`LegModel::links`].
+pub fn link_poses_with_hip_at(model: &LegModel, hip_rad: f64, knee_rad: f64) -> Result<Vec<Pose2>, LegError> {
+    Ok(link_poses_at(model, knee_rad)?.iter().map(|p| hip_rotated(hip_rad, p)).collect())
+}
+
+/// Hip-knee generalized mass matrix `(M_hh, M_hk, M_kk)`, kg m^2, for q = (theta_h, theta_k)
+/// (independent of the hip angle). `M_kk` equals [`generalized_inertia_at`]; `M_hh` is the
+/// inertia of the whole leg about the hip axis; `M_hk < 0` near full extension (a forward hip
+/// acceleration flexes a passive knee).
+pub fn hip_knee_mass_matrix_at(model: &LegModel, knee_rad: f64) -> Result<(f64, f64, f64), LegError> {
+    let p0 = link_poses_at(model, knee_rad)?;
+    let pp = link_poses_at(model, knee_rad + H)?;
+    let pm = link_poses_at(model, knee_rad - H)?;
+    let (mut mhh, mut mhk, mut mkk) = (0.0, 0.0, 0.0);
+    for (i, l) in model.links.iter().enumerate() {
+        let com = super::planar::P2::new(l.com_m[0], l.com_m[2]);
+        let c = p0[i].apply(com);
+        let dc = pp[i].apply(com).minus(pm[i].apply(com)).scale(1.0 / (2.0 * H));
+        let da = (pp[i].a - pm[i].a) / (2.0 * H);
+        let iyy = l.inertia_kg_m2[1][1];
+        mhh += l.mass_kg * c.dot(c) + iyy;
+        mhk -= l.mass_kg * (c.z * dc.x - c.x * dc.z) + iyy * da;
+        mkk += l.mass_kg * dc.dot(dc) + iyy * da * da;
+    }
+    Ok((mhh, mhk, mkk))
+}
+
+/// Gravitational potential energy `sum m g z_com` of all links with a moving hip, J (z from the
+/// hip). `hip_rad`, `knee_rad` in rad (flexion positive).
+pub fn potential_energy_with_hip_at(model: &LegModel, hip_rad: f64, knee_rad: f64) -> Result<f64, LegError> {
+    let poses = link_poses_at(model, knee_rad)?;
+    let (s, c) = hip_rad.sin_cos();
+    Ok(model
+        .links
+        .iter()
+        .zip(&poses)
+        .map(|(l, p)| {
+            let q = p.apply(super::planar::P2::new(l.com_m[0], l.com_m[2]));
+            l.mass_kg * GRAVITY_M_S2 * (q.x * s + q.z * c)
+        })
+        .sum())
+}
+
+/// Mass-matrix entries and their knee derivatives: `(M_hh, M_hk, M_kk, M_hh', M_hk', M_kk')`.
+fn mass_terms(model: &LegModel, knee_rad: f64) -> Result<[f64; 6], LegError> {
+    let (mhh, mhk, mkk) = hip_knee_mass_matrix_at(model, knee_rad)?;
+    let (hp, kp, pp) = hip_knee_mass_matrix_at(model, knee_rad + H_DM)?;
+    let (hm, km, pm) = hip_knee_mass_matrix_at(model, knee_rad - H_DM)?;
+    let d = 2.0 * H_DM;
+    Ok([mhh, mhk, mkk, (hp - hm) / d, (kp - km) / d, (pp - pm) / d])
+}
+
+/// Knee forces of the two-DoF model except the `M_kk thdd_k` term, N m.
+fn knee_bias(
+    model: &LegModel,
+    m: &[f64; 6],
+    hip: (f64, f64, f64),
+    knee_rad: f64,
+    knee_vel: f64,
+) -> Result<f64, LegError> {
+    let (th, thd, thdd) = hip;
+    let dv = (potential_energy_with_hip_at(model, th, knee_rad + H)?
+        - potential_energy_with_hip_at(model, th, knee_rad - H)?)
+        / (2.0 * H);
+    Ok(m[1] * thdd + 0.5 * m[5] * knee_vel * knee_vel - 0.5 * m[3] * thd * thd + dv)
+}
+
+/// Inverse dynamics of the knee coordinate with a prescribed hip motion.
+///
+/// `hip` and `knee` are `(angle rad, rate rad/s, acceleration rad/s^2)`, flexion positive.
+/// Returns the generalized knee force (N m) needed,
+/// `tau_k = M_kk thdd_k + M_hk thdd_h + 1/2 M_kk' thd_k^2 - 1/2 M_hh' thd_h^2 + dV/dtheta_k`,
+/// where `tau_k = F dL/dtheta_k + tau_ext` (F = actuator force in N, positive lengthening;
+/// `tau_ext` = external cuff torque on the knee coordinate, N m). With the hip fixed
+/// (`hip = (0, 0, 0)`) this is the inverse of [`reduced_acceleration`].
+pub fn knee_inverse_dynamics(model: &LegModel, hip: (f64, f64, f64), knee: (f64, f64, f64)) -> Result<f64, LegError> {
+    let m = mass_terms(model, knee.0)?;
+    Ok(m[2] * knee.2 + knee_bias(model, &m, hip, knee.0, knee.1)?)
+}
+
+/// Forward dynamics of the knee coordinate with a prescribed hip motion: knee acceleration,
+/// rad/s^2, for a generalized knee force `tau_k` (N m, see [`knee_inverse_dynamics`]).
+/// `hip = (angle rad, rate rad/s, acceleration rad/s^2)`; `knee_rad` rad; `knee_vel` rad/s.
+pub fn knee_forward_acceleration(
+    model: &LegModel,
+    hip: (f64, f64, f64),
+    knee_rad: f64,
+    knee_vel: f64,
+    tau_k: f64,
+) -> Result<f64, LegError> {
+    let m = mass_terms(model, knee_rad)?;
+    Ok((tau_k - knee_bias(model, &m, hip, knee_rad, knee_vel)?) / m[2])
+}
+
+/// Generalized hip torque (N m, positive in flexion) needed to produce the given motion of both
+/// coordinates: `tau_h = M_hh thdd_h + M_hk thdd_k + M_hh' thd_h thd_k + M_hk' thd_k^2 + dV/dtheta_h`.
+/// `hip`, `knee` = `(angle rad, rate rad/s, acceleration rad/s^2)`. The actuator's internal force
+/// pair does no work on the hip coordinate (both its ends turn with the thigh), so this is the
+/// torque the hip drive has to provide.
+pub fn hip_inverse_dynamics(model: &LegModel, hip: (f64, f64, f64), knee: (f64, f64, f64)) -> Result<f64, LegError> {
+    let m = mass_terms(model, knee.0)?;
+    let dv = (potential_energy_with_hip_at(model, hip.0 + H, knee.0)?
+        - potential_energy_with_hip_at(model, hip.0 - H, knee.0)?)
+        / (2.0 * H);
+    Ok(m[0] * hip.2 + m[1] * knee.2 + m[3] * hip.1 * knee.1 + m[4] * knee.1 * knee.1 + dv)
 }

@@ -19,8 +19,10 @@ pub mod sim;
 
 pub use error::LegError;
 pub use geometry::{
-    cylinder_length_at, generalized_inertia_at, gravity_torque_at, holding_force_at, knee_torque_required,
-    link_poses_at, loop_pose_at, moment_arm_at, potential_energy_at, reduced_acceleration,
+    cylinder_length_at, generalized_inertia_at, gravity_torque_at, hip_inverse_dynamics, hip_knee_mass_matrix_at,
+    hip_rotated, holding_force_at, knee_forward_acceleration, knee_inverse_dynamics, link_poses_at,
+    link_poses_with_hip_at, loop_pose_at, moment_arm_at, potential_energy_at, potential_energy_with_hip_at,
+    reduced_acceleration,
 };
 pub use model::{ActuatorSpec, JointKind, JointSpec, LegModel, LinkSpec, LoopClosureSpec, LoopPose};
-pub use sim::{Leg, LegSolverParams};
+pub use sim::{HipCoupling, Leg, LegSolverParams};

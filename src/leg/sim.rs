@@ -4,6 +4,13 @@
 //! rod slide as multibody joints, fixed joints welded in) plus one impulse joint (spherical) that
 //! closes the loop at the rod end. No colliders: mass properties come from the URDF `<inertial>`
 //! only. Gravity is -9.81 m/s^2 along z.
+//!
+//! Driven hip ([`Leg::with_hip`]): a massless fixed "pelvis" body at the world origin becomes the
+//! multibody root and the (now dynamic) thigh hangs on a *kinematic* revolute multibody joint
+//! about -y (coordinate = hip flexion, rad). Rapier integrates the user-set joint velocity
+//! exactly and includes its centrifugal/Coriolis effects, but drops the kinematic DoF from the
+//! augmented mass, so the hip *acceleration* never reaches the free joints; [`Leg::step`] adds it
+//! back as d'Alembert wrenches ([`HipCoupling::InertialCompensation`]).
 
 use rapier3d_f64::glamx::{DQuat, DVec3, EulerRot};
 use rapier3d_f64::math::{Pose, Vector};
@@ -30,6 +37,34 @@ impl Default for LegSolverParams {
     }
 }
 
+/// How a driven hip (see [`Leg::with_hip`]) passes its acceleration on to the free joints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum HipCoupling {
+    /// Rapier's kinematic multibody joint alone. Rapier removes the kinematic DoF from the
+    /// augmented mass and never sees its acceleration, so the inertial coupling `M_hk thdd_h` is
+    /// lost (a velocity change of the hip does not change the relative knee velocity).
+    /// Centrifugal / Coriolis terms of the hip velocity are included. For diagnostics.
+    RapierOnly,
+    /// Rapier's kinematic joint plus the d'Alembert wrench of the hip acceleration applied to
+    /// every moving body: `f_i = -m_i (alpha x c_i)` at its CoM and `t_i = -I_i alpha` (world),
+    /// `alpha = thdd_h` about the hip axis, so that `J_free^T w = -M_free,hip thdd_h` exactly.
+    /// `thdd_h` is the change of the commanded hip velocity divided by dt.
+    #[default]
+    InertialCompensation,
+}
+
+/// State of the kinematic hip joint.
+#[derive(Clone, Copy, Debug)]
+struct HipState {
+    /// Multibody link id of the thigh (child of the hip joint).
+    link: usize,
+    /// Generalized velocity applied in the previous step, rad/s.
+    vel: f64,
+    /// Hip acceleration to compensate in the next step, rad/s^2.
+    accel: f64,
+    coupling: HipCoupling,
+}
+
 /// A running simulation of a [`LegModel`]. Owns all Rapier sets and the pipeline.
 pub struct Leg {
     model: LegModel,
@@ -53,6 +88,8 @@ pub struct Leg {
     time: f64,
     last_dl: f64,
     last_dknee: f64,
+    /// `Some` when the thigh hangs on a kinematic hip joint (see [`Leg::with_hip`]).
+    hip: Option<HipState>,
 }
 
 fn pose3(xyz: [f64; 3], rpy: [f64; 3]) -> Pose {
@@ -96,6 +133,37 @@ impl Leg {
         dt_s: f64,
         params: LegSolverParams,
     ) -> Result<Self, LegError> {
+        Self::build(model, initial_knee_rad, None, dt_s, params)
+    }
+
+    /// Builds the simulation with a driven hip: a fixed "pelvis" body (no mass) at the world
+    /// origin is the multibody root and the thigh hangs on a kinematic revolute joint about -y
+    /// through the origin, whose coordinate is hip flexion (rad, positive = thigh forward).
+    /// The leg starts at knee flexion `initial_knee_rad` (rad) with zero relative joint
+    /// velocities, hip flexion `initial_hip_rad` (rad) and hip velocity `initial_hip_vel_rad_s`
+    /// (rad/s; the whole leg then turns rigidly). Drive the hip with [`Leg::set_hip_target`] or
+    /// [`Leg::set_hip_velocity`] before each [`Leg::step`]; the hip keeps its velocity otherwise.
+    pub fn with_hip(
+        model: &LegModel,
+        initial_knee_rad: f64,
+        initial_hip_rad: f64,
+        initial_hip_vel_rad_s: f64,
+        dt_s: f64,
+        params: LegSolverParams,
+    ) -> Result<Self, LegError> {
+        if !(initial_hip_rad.is_finite() && initial_hip_vel_rad_s.is_finite()) {
+            return Err(LegError::InvalidArgument("initial hip state is not finite".into()));
+        }
+        Self::build(model, initial_knee_rad, Some((initial_hip_rad, initial_hip_vel_rad_s)), dt_s, params)
+    }
+
+    fn build(
+        model: &LegModel,
+        initial_knee_rad: f64,
+        hip: Option<(f64, f64)>,
+        dt_s: f64,
+        params: LegSolverParams,
+    ) -> Result<Self, LegError> {
         if !(dt_s.is_finite() && dt_s > 0.0) {
             return Err(LegError::InvalidArgument(format!("dt_s must be > 0, got {dt_s}")));
         }
@@ -116,6 +184,9 @@ impl Leg {
 
         // 3D forward kinematics for the initial body poses.
         let mut poses = vec![Pose::IDENTITY; model.links.len()];
+        if let Some((h0, _)) = hip {
+            poses[model.root] = Pose::from_rotation(DQuat::from_axis_angle(-DVec3::Y, h0));
+        }
         for &ji in &model.topo_joints {
             let j = &model.joints[ji];
             let axis = DVec3::from(j.axis);
@@ -154,13 +225,30 @@ impl Leg {
                         .transform_by(&offset[i]);
                 }
             }
-            let b = if a == model.root { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
+            let b =
+                if a == model.root && hip.is_none() { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
             let rb = b.pose(poses[a]).additional_mass_properties(mp).can_sleep(false).build();
             let h = world.bodies.insert(rb);
             handle_of_anchor[a] = Some(h);
             bodies.push(h);
         }
         let link_body: Vec<RigidBodyHandle> = (0..n).map(|l| handle_of_anchor[anchor[l]].unwrap()).collect();
+
+        if hip.is_some() {
+            // Massless fixed pelvis at the hip centre; the hip is a kinematic hinge whose joint
+            // X axis is the world -y axis, so its coordinate is hip flexion.
+            let pelvis = world.bodies.insert(RigidBodyBuilder::fixed().can_sleep(false).build());
+            let align = Pose::from_rotation(DQuat::from_rotation_arc(DVec3::X, -DVec3::Y));
+            let gj = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
+                .local_frame1(align)
+                .local_frame2(align)
+                .contacts_enabled(false)
+                .build();
+            world
+                .multibody_joints
+                .insert_kinematic(pelvis, link_body[model.root], gj, true)
+                .ok_or_else(|| LegError::Unsupported("Rapier refused the kinematic hip joint".into()))?;
+        }
 
         for &ji in &model.topo_joints {
             let j = &model.joints[ji];
@@ -195,6 +283,7 @@ impl Leg {
         let knee_link = link_id(&world, link_body[model.joints[model.knee].child]).unwrap().1;
         let barrel_link = link_id(&world, link_body[model.joints[model.barrel].child]).unwrap().1;
         let rod_link = link_id(&world, link_body[rod_child]).unwrap().1;
+        let hip_link = hip.map(|_| link_id(&world, link_body[model.root]).unwrap().1);
 
         let joint_links: Vec<(usize, usize)> = model
             .topo_joints
@@ -215,11 +304,18 @@ impl Leg {
                 disp[aid] = q[ji];
                 damping[aid] = j.damping;
             }
+            let hip_aid = hip_link.map(|l| multibody.link(l).unwrap().assembly_id());
+            if let (Some(aid), Some((h0, _))) = (hip_aid, hip) {
+                disp[aid] = h0;
+            }
             // Multibody joints start at coordinate 0: displace them to the loop solution.
             multibody.apply_displacements(&disp);
             // Remove Rapier's default 0.1 N m s/rad hinge damping; use the URDF's instead.
             multibody.damping_mut().copy_from_slice(&damping);
             multibody.generalized_velocity_mut().fill(0.0);
+            if let (Some(aid), Some((_, v0))) = (hip_aid, hip) {
+                multibody.generalized_velocity_mut()[aid] = v0;
+            }
             multibody.forward_kinematics(&world.bodies, false);
             multibody.update_rigid_bodies(&mut world.bodies, true);
         }
@@ -231,6 +327,12 @@ impl Leg {
         world.integration_parameters.dt = 0.0;
         world.step();
         world.integration_parameters.dt = dt_s;
+        let hip = hip_link.zip(hip).map(|(link, (_, v0))| HipState {
+            link,
+            vel: v0,
+            accel: 0.0,
+            coupling: HipCoupling::default(),
+        });
 
         let leg = Leg {
             model: model.clone(),
@@ -250,6 +352,7 @@ impl Leg {
             time: 0.0,
             last_dl: 0.0,
             last_dknee: 0.0,
+            hip,
         };
         Ok(leg)
     }
@@ -301,6 +404,60 @@ impl Leg {
     fn gen_vel(&self, link: usize) -> f64 {
         let mb = self.multibody();
         mb.joint_velocity(mb.link(link).unwrap())[0]
+    }
+
+    /// Whether the hip is driven (built with [`Leg::with_hip`]).
+    pub fn has_hip(&self) -> bool {
+        self.hip.is_some()
+    }
+
+    /// Hip flexion angle (kinematic joint coordinate), rad; 0 for a fixed thigh.
+    pub fn hip_angle_rad(&self) -> f64 {
+        self.hip.map_or(0.0, |h| self.coord(h.link, JointKind::Revolute))
+    }
+
+    /// Hip flexion velocity (the kinematic joint velocity used in the last / next step), rad/s;
+    /// 0 for a fixed thigh.
+    pub fn hip_velocity_rad_s(&self) -> f64 {
+        self.hip.map_or(0.0, |h| self.gen_vel(h.link))
+    }
+
+    /// Selects how the hip acceleration is passed on (default
+    /// [`HipCoupling::InertialCompensation`]). No effect for a fixed thigh.
+    pub fn set_hip_coupling(&mut self, coupling: HipCoupling) {
+        if let Some(h) = &mut self.hip {
+            h.coupling = coupling;
+        }
+    }
+
+    /// Sets the hip velocity (rad/s, flexion positive) used during the next step(s). The hip
+    /// angle integrates it exactly (`theta_h += v dt`). The acceleration `(v - v_prev) / dt` is
+    /// compensated in the next step (see [`HipCoupling`]). Error for a fixed thigh.
+    pub fn set_hip_velocity(&mut self, velocity_rad_s: f64) -> Result<(), LegError> {
+        let dt = self.dt;
+        let mb_id = self.mb;
+        let h = self
+            .hip
+            .as_mut()
+            .ok_or_else(|| LegError::InvalidArgument("the leg has no driven hip (use Leg::with_hip)".into()))?;
+        if !velocity_rad_s.is_finite() {
+            return Err(LegError::InvalidArgument("hip velocity is not finite".into()));
+        }
+        h.accel += (velocity_rad_s - h.vel) / dt;
+        h.vel = velocity_rad_s;
+        let mb = self.world.multibody_joints.get_multibody_mut(mb_id).unwrap();
+        let aid = mb.link(h.link).unwrap().assembly_id();
+        mb.generalized_velocity_mut()[aid] = velocity_rad_s;
+        Ok(())
+    }
+
+    /// Prescribes the hip flexion angle (rad) reached at the end of the next step: sets the
+    /// kinematic joint velocity to `(angle - current) / dt`, which Rapier integrates exactly.
+    /// For a smooth `theta_h(t)`, call it with `theta_h(t + dt)` before every step; the hip
+    /// acceleration seen by the compensation is then the second difference of the samples.
+    pub fn set_hip_target(&mut self, angle_rad_at_end_of_step: f64) -> Result<(), LegError> {
+        let v = (angle_rad_at_end_of_step - self.hip_angle_rad()) / self.dt;
+        self.set_hip_velocity(v)
     }
 
     /// Knee flexion angle (multibody coordinate), rad.
@@ -369,7 +526,8 @@ impl Leg {
     /// `actuator_force_n` (N, positive lengthens the cylinder) as an equal and opposite pair along
     /// the pin-to-pin line (on the rod at its closure anchor, on the barrel at its pivot), plus an
     /// optional external force `(point in shank frame [m], force in world [N])` on the knee child
-    /// (shank), then steps Rapier.
+    /// (shank), then steps Rapier. With a driven hip ([`Leg::with_hip`]) it also applies the
+    /// d'Alembert wrenches of the hip acceleration set since the last step (see [`HipCoupling`]).
     pub fn step(&mut self, actuator_force_n: f64, shank_force: Option<([f64; 3], [f64; 3])>) {
         let l0 = self.cylinder_length_m();
         let k0 = self.knee_angle_rad();
@@ -388,15 +546,49 @@ impl Leg {
             let barrel_body = self.model.joints[self.model.barrel].child;
             self.world.bodies[self.link_body[barrel_body]].add_force_at_point(-f, pb, true);
         }
+        if let Some(h) = self.hip {
+            if h.coupling == HipCoupling::InertialCompensation && h.accel != 0.0 {
+                self.apply_hip_inertial_wrenches(h.accel);
+            }
+        }
         if let Some((p, f)) = shank_force {
             let shank = self.model.joints[self.model.knee].child;
             let pw = self.world_point(shank, DVec3::from(p));
             self.world.bodies[self.link_body[shank]].add_force_at_point(DVec3::from(f), pw, true);
         }
         self.world.step();
+        if let Some(h) = &mut self.hip {
+            h.accel = 0.0;
+        }
         self.time += self.dt;
         self.last_dl = self.cylinder_length_m() - l0;
         self.last_dknee = self.knee_angle_rad() - k0;
+    }
+
+    /// d'Alembert wrench of a hip angular acceleration `accel` (rad/s^2, flexion positive) on
+    /// every link not carried by the thigh body: `-m (alpha x c)` at the CoM, `-I_world alpha`.
+    fn apply_hip_inertial_wrenches(&mut self, accel: f64) {
+        let alpha = -DVec3::Y * accel; // hip flexion = rotation about -y through the origin
+        let thigh_body = self.link_body[self.model.root];
+        for (li, l) in self.model.links.iter().enumerate() {
+            let h = self.link_body[li];
+            if h == thigh_body {
+                continue;
+            }
+            let pose = *self.world.bodies[h].position() * self.link_offset[li];
+            let c = pose * DVec3::from(l.com_m);
+            let f = -l.mass_kg * alpha.cross(c);
+            let w = pose.rotation.inverse() * alpha;
+            let i = &l.inertia_kg_m2;
+            let iw = DVec3::new(
+                i[0][0] * w.x + i[0][1] * w.y + i[0][2] * w.z,
+                i[1][0] * w.x + i[1][1] * w.y + i[1][2] * w.z,
+                i[2][0] * w.x + i[2][1] * w.y + i[2][2] * w.z,
+            );
+            let rb = &mut self.world.bodies[h];
+            rb.add_force_at_point(f, c, true);
+            rb.add_torque(-(pose.rotation * iw), true);
+        }
     }
 
     /// Kinetic energy of all links, J (from the multibody generalized velocities and body

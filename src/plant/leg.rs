@@ -2,7 +2,7 @@
 
 use super::{PistonMotion, PistonPredictor, Plant, PlantInputs};
 use crate::error::{Error, Result};
-use crate::leg::{generalized_inertia_at, moment_arm_at, reduced_acceleration, Leg, LegModel, LegSolverParams};
+use crate::leg::{generalized_inertia_at, knee_forward_acceleration, moment_arm_at, Leg, LegModel, LegSolverParams};
 use rapier3d_f64::glamx::DVec3;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -62,6 +62,18 @@ impl LegParams {
         LegModel::from_urdf_file(found, &self.knee_joint)
             .map_err(|e| Error::input(found.display().to_string(), "", e.to_string()))
     }
+}
+
+/// Initial state of the leg: knee angle and rate, and the hip trajectory sample at t = 0 when
+/// the hip is driven (`None`: thigh fixed).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LegStart {
+    /// Knee flexion (rad).
+    pub knee_rad: f64,
+    /// Knee rate (rad/s).
+    pub knee_rate_rad_s: f64,
+    /// Hip angle, rate, acceleration at t = 0 (rad, rad/s, rad/s^2), when driven.
+    pub hip: Option<crate::reference::RefSample>,
 }
 
 /// Effective mass at the cylinder, `M(theta) / (dL/dtheta)^2`, tabulated over the knee range.
@@ -132,16 +144,22 @@ impl LegPlant {
     pub fn new(
         model: LegModel,
         p: &LegParams,
-        initial_knee_rad: f64,
-        initial_knee_rate_rad_s: f64,
+        start: LegStart,
         dt_s: f64,
         cuff_point: [f64; 3],
         source_name: &str,
     ) -> Result<Self> {
         let params = LegSolverParams { solver_iterations: p.solver_iterations, ..Default::default() };
-        let (q0, qd0) = (initial_knee_rad, initial_knee_rate_rad_s);
+        let (q0, qd0, hip) = (start.knee_rad, start.knee_rate_rad_s, start.hip);
         let bad = |e: crate::leg::LegError| Error::input(source_name, "leg.initial_knee_deg", e.to_string());
-        let mut leg = Leg::with_params(&model, q0, dt_s, params).map_err(bad)?;
+        let mut leg = match &hip {
+            None => Leg::with_params(&model, q0, dt_s, params),
+            // The kinematic hip joint's velocity is its average over a step; the velocity it
+            // had over the step before t = 0 is rate - accel*dt/2, so the first step sees the
+            // hip acceleration the trajectory has.
+            Some(h) => Leg::with_hip(&model, q0, h.value, h.rate - 0.5 * h.accel * dt_s, dt_s, params),
+        }
+        .map_err(bad)?;
         if qd0 != 0.0 {
             leg.set_knee_velocity(qd0).map_err(bad)?;
         }
@@ -153,7 +171,8 @@ impl LegPlant {
         // xc_ddot = dL/dq * q_ddot + d(dL/dq)/dq * q_dot^2, with no cylinder force.
         let arm = moment_arm_at(&model, q0);
         let darm = (moment_arm_at(&model, q0 + 1e-5) - moment_arm_at(&model, q0 - 1e-5)) / 2e-5;
-        let free_accel_m_s2 = arm * reduced_acceleration(&model, q0, qd0, 0.0, 0.0).map_err(bad)? + darm * qd0 * qd0;
+        let h = hip.map_or((0.0, 0.0, 0.0), |h| (h.value, h.rate, h.accel));
+        let free_accel_m_s2 = arm * knee_forward_acceleration(&model, h, q0, qd0, 0.0).map_err(bad)? + darm * qd0 * qd0;
         Ok(Self {
             leg,
             model,
@@ -244,6 +263,13 @@ impl Plant for LegPlant {
             None
         };
         let m_eff = self.mass.at(q);
+        if let Some(h) = inputs.hip_target_rad {
+            self.leg.set_hip_target(h).map_err(|e| Error::Diverged {
+                time_s: t_s,
+                state: format!("hip_angle_rad ({e})"),
+                value: h,
+            })?;
+        }
         self.leg.step(inputs.cylinder_force_n, cuff);
         let dl = self.leg.cylinder_length_change_m();
         let q1 = self.leg.knee_angle_rad();
@@ -262,7 +288,14 @@ impl Plant for LegPlant {
     }
 
     fn extra_names(&self) -> Vec<&'static str> {
-        vec!["knee_angle_deg", "knee_velocity_deg_s", "cylinder_length_m", "loop_closure_gap_m", "moment_arm_m"]
+        vec![
+            "knee_angle_deg",
+            "knee_velocity_deg_s",
+            "hip_angle_deg",
+            "cylinder_length_m",
+            "loop_closure_gap_m",
+            "moment_arm_m",
+        ]
     }
 
     fn extra_values(&self, out: &mut Vec<f64>) {
@@ -270,6 +303,7 @@ impl Plant for LegPlant {
         out.extend_from_slice(&[
             q.to_degrees(),
             self.leg.knee_velocity_rad_s().to_degrees(),
+            if self.leg.has_hip() { self.leg.hip_angle_rad().to_degrees() } else { 0.0 },
             self.length_m,
             self.leg.loop_gap_m(),
             moment_arm_at(&self.model, q),

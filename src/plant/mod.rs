@@ -67,6 +67,8 @@ pub struct PlantInputs {
     /// Human interaction force at the cuff (N), perpendicular to the shank, positive in the
     /// direction of knee flexion (`human.mode = "cuff"`; ignored by the bench).
     pub cuff_force_n: f64,
+    /// Hip flexion (rad) to reach at the end of the step, for a leg whose hip is driven.
+    pub hip_target_rad: Option<f64>,
 }
 
 /// A plant as the co-simulation loop sees it.

@@ -17,7 +17,7 @@
 use super::{FourierSeries, GaitReference, RefSample};
 use crate::error::{Error, Result};
 use crate::hydraulics::FrictionParams;
-use crate::leg::{knee_torque_required, moment_arm_at, LegModel};
+use crate::leg::{knee_inverse_dynamics, moment_arm_at, LegModel};
 
 /// Harmonics of the Fourier fit of the feedforward force over one stride.
 const FF_HARMONICS: usize = 48;
@@ -55,7 +55,7 @@ impl KneeForceReference {
             let k = gait.knee_at(ti);
             let h = if drive_hip { gait.hip_at(ti) } else { RefSample::default() };
             let tau =
-                knee_torque_required(model, (h.value, h.rate, h.accel), (k.value, k.rate, k.accel)).map_err(|e| {
+                knee_inverse_dynamics(model, (h.value, h.rate, h.accel), (k.value, k.rate, k.accel)).map_err(|e| {
                     Error::input("reference", "reference", format!("inverse dynamics at t = {ti:.4} s: {e}"))
                 })?;
             let arm = moment_arm_at(model, k.value);

@@ -94,7 +94,7 @@ pub struct ReferenceSection {
     pub cadence_steps_per_min: Option<f64>,
     /// Gait: harmonics of the periodic Fourier fit of the angles. Default 12. 1..=40.
     pub harmonics: usize,
-    /// Gait: drive the thigh along the trial's hip angle. Default false.
+    /// Gait: drive the thigh along the trial's hip angle (kinematic hip joint). Default true.
     pub drive_hip: bool,
     /// Gait: outer-loop proportional gain on the knee angle error (N m/rad). Default 400. >= 0.
     pub knee_kp_nm_per_rad: f64,
@@ -115,7 +115,7 @@ impl Default for ReferenceSection {
             stride_s: None,
             cadence_steps_per_min: None,
             harmonics: 12,
-            drive_hip: false,
+            drive_hip: true,
             knee_kp_nm_per_rad: 400.0,
             knee_kd_nm_s_per_rad: 15.0,
         }

@@ -204,7 +204,8 @@ impl RefModel {
             let (xm, zm) = pm[i].1.apply(b.cx, b.cz);
             let vx = (xp - xm) / (2.0 * h);
             let vz = (zp - zm) / (2.0 * h);
-            let w = (pp[i].1.a - pm[i].1.a) / (2.0 * h);
+            // wrap: the barrel pitch comes from atan2 and jumps by 2 pi near full extension.
+            let w = wrap(pp[i].1.a - pm[i].1.a) / (2.0 * h);
             m += b.m * (vx * vx + vz * vz) + b.iyy * w * w;
         }
         m
@@ -270,4 +271,111 @@ pub fn mean_period(samples: &[(f64, f64)]) -> (f64, usize) {
 
 pub fn manifest(p: &str) -> String {
     format!("{}/{}", env!("CARGO_MANIFEST_DIR"), p)
+}
+
+// ---- Moving hip (thigh hinged at the world origin) ----------------------------------------
+//
+// Hip flexion `hip` (positive = thigh forward, knee to +x) rotates the whole planar leg by
+// `-hip` about +y (P's rotation convention moves a point below the origin to -x for a positive
+// angle). The knee/hip generalized forces are computed by the principle of virtual power
+// (d'Alembert), not from a Lagrangian mass matrix:
+//     Q_j = sum_i m_i (a_i + g z_hat) . dc_i/dq_j + I_i alpha_dd_i dalpha_i/dq_j,
+// with the world CoM accelerations a_i and pitch accelerations alpha_dd_i obtained by a second
+// difference in time along q(t) = q + qd t + qdd t^2 / 2.
+
+/// Angle difference wrapped to (-pi, pi] (pitches come from atan2 and jump by 2 pi when a
+/// body, e.g. the barrel hanging along -z, crosses the branch cut).
+pub fn wrap(a: f64) -> f64 {
+    let t = std::f64::consts::TAU;
+    a - t * (a / t).round()
+}
+
+/// Hip motion sample: (angle rad, rate rad/s, acceleration rad/s^2).
+pub type Hip3 = (f64, f64, f64);
+
+/// (name, com x, com z, pitch) of every body, see [`RefModel::world_bodies`].
+pub type WorldBodies = Vec<(&'static str, f64, f64, f64)>;
+
+impl RefModel {
+    /// World (com x, com z, pitch) of thigh, shank, foot, barrel, rod for (hip, knee) angles.
+    pub fn world_bodies(&self, hip: f64, th: f64) -> WorldBodies {
+        let h = P { x: 0.0, z: 0.0, a: -hip };
+        let mut all = vec![("thigh", P { x: 0.0, z: 0.0, a: 0.0 })];
+        all.extend(self.poses(th));
+        all.into_iter()
+            .map(|(n, p)| {
+                let w = h.mul(&p);
+                let b = &self.bodies[n];
+                let (x, z) = w.apply(b.cx, b.cz);
+                (n, x, z, w.a)
+            })
+            .collect()
+    }
+
+    /// Generalized forces (hip, knee), N m, needed for the motion `hip`, `knee` =
+    /// (angle, rate, acceleration), by virtual power.
+    pub fn inverse_dynamics2(&self, hip: Hip3, knee: Hip3) -> (f64, f64) {
+        let ht = 1e-4;
+        let at = |t: f64| {
+            self.world_bodies(hip.0 + hip.1 * t + 0.5 * hip.2 * t * t, knee.0 + knee.1 * t + 0.5 * knee.2 * t * t)
+        };
+        let (bm, b0, bp) = (at(-ht), at(0.0), at(ht));
+        let d = 1e-6;
+        let jh = (self.world_bodies(hip.0 + d, knee.0), self.world_bodies(hip.0 - d, knee.0));
+        let jk = (self.world_bodies(hip.0, knee.0 + d), self.world_bodies(hip.0, knee.0 - d));
+        let (mut qh, mut qk) = (0.0, 0.0);
+        for i in 0..b0.len() {
+            let b = &self.bodies[b0[i].0];
+            let ax = (bp[i].1 - 2.0 * b0[i].1 + bm[i].1) / (ht * ht);
+            let az = (bp[i].2 - 2.0 * b0[i].2 + bm[i].2) / (ht * ht) + G;
+            let aa = (wrap(bp[i].3 - b0[i].3) - wrap(b0[i].3 - bm[i].3)) / (ht * ht);
+            let proj = |j: &(WorldBodies, WorldBodies)| {
+                let dx = (j.0[i].1 - j.1[i].1) / (2.0 * d);
+                let dz = (j.0[i].2 - j.1[i].2) / (2.0 * d);
+                let da = wrap(j.0[i].3 - j.1[i].3) / (2.0 * d);
+                b.m * (ax * dx + az * dz) + b.iyy * aa * da
+            };
+            qh += proj(&jh);
+            qk += proj(&jk);
+        }
+        (qh, qk)
+    }
+
+    /// Knee acceleration for a generalized knee force `tau` with a prescribed hip (the knee row
+    /// is affine in the knee acceleration).
+    pub fn accel_with_hip(&self, hip: Hip3, th: f64, w: f64, tau: f64) -> f64 {
+        let q0 = self.inverse_dynamics2(hip, (th, w, 0.0)).1;
+        let q1 = self.inverse_dynamics2(hip, (th, w, 1.0)).1;
+        (tau - q0) / (q1 - q0)
+    }
+
+    /// RK4 of the passive knee (tau = 0) with a prescribed hip `hip(t)`; samples (t, theta).
+    pub fn simulate_with_hip(
+        &self,
+        th0: f64,
+        w0: f64,
+        hip: impl Fn(f64) -> Hip3,
+        dt: f64,
+        t_end: f64,
+    ) -> Vec<(f64, f64)> {
+        let mut out = vec![(0.0, th0)];
+        let (mut q, mut w) = (th0, w0);
+        let n = (t_end / dt).round() as usize;
+        for i in 0..n {
+            let t = i as f64 * dt;
+            let (h0, hm, h1) = (hip(t), hip(t + 0.5 * dt), hip(t + dt));
+            let k1q = w;
+            let k1w = self.accel_with_hip(h0, q, w, 0.0);
+            let k2q = w + 0.5 * dt * k1w;
+            let k2w = self.accel_with_hip(hm, q + 0.5 * dt * k1q, k2q, 0.0);
+            let k3q = w + 0.5 * dt * k2w;
+            let k3w = self.accel_with_hip(hm, q + 0.5 * dt * k2q, k3q, 0.0);
+            let k4q = w + dt * k3w;
+            let k4w = self.accel_with_hip(h1, q + dt * k3q, k4q, 0.0);
+            q += dt / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q);
+            w += dt / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w);
+            out.push(((i + 1) as f64 * dt, q));
+        }
+        out
+    }
 }
