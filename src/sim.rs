@@ -32,6 +32,7 @@ use crate::error::{Error, Result};
 use crate::human::{HumanMode, HumanParams};
 use crate::hydraulics::{
     ActuatorMode, ActuatorParams, Coefficients, ForceChannelInput, ForceChannelState, ForceSource, FrictionParams,
+    HydraulicModel, TwoChamber,
 };
 use crate::leg::LegModel;
 use crate::metrics::{self, Summary};
@@ -40,9 +41,10 @@ use crate::reference::{KneeForceReference, RefSample, Sine};
 use crate::scenario::{ReferenceKind, Scenario};
 use crate::sensors::{SampledSensors, Truth};
 
-/// Plant-side states in the integrated vector: F_L, x_v, r, and the predicted piston
-/// position and velocity inside the step (leg plant; unused for a prescribed piston).
-const NH: usize = 5;
+/// Plant-side states in the integrated vector: F_L, x_v, r, the predicted piston position
+/// and velocity inside the step (leg plant; unused for a prescribed piston), and the mean
+/// chamber pressure (two-chamber model; unused by the linear one).
+const NH: usize = 6;
 /// Length of the integrated state vector.
 const NX: usize = NH + MAX_CONTROLLER_STATES;
 type X = [f64; NX];
@@ -191,6 +193,8 @@ struct Model<'a> {
     act: &'a ActuatorParams,
     /// Load-force bounds (N): [-p_s*A2, p_s*A1], or infinite.
     force_bounds: (f64, f64),
+    /// The two-chamber plant, when `hydraulics.model = "two_chamber"`.
+    two_chamber: Option<TwoChamber>,
     seed: u64,
 }
 
@@ -249,9 +253,11 @@ impl Model<'_> {
         &self,
         t: f64,
         h: &ForceChannelState,
-        piston_vel: f64,
+        piston: &PistonMotion,
+        mean_pressure_pa: f64,
         r: &RefSample,
-    ) -> (ForceChannelInput, f64, f64) {
+    ) -> (ForceChannelInput, f64, f64, f64) {
+        let piston_vel = piston.velocity_m_s;
         let (d_f, d_f_rate) = self.dist.force_rate.value_and_rate(t, self.seed, CHANNEL_FORCE_RATE);
         let mut inp = ForceChannelInput {
             valve_command: 0.0,
@@ -260,7 +266,17 @@ impl Model<'_> {
             force_accel_dist_n_per_s2: 0.0,
             spool_dist_m_per_s: self.dist.spool.value(t, self.seed, CHANNEL_SPOOL),
         };
-        let x2 = self.coeffs.force_rate(h, &inp);
+        // x2 = dF_L/dt: from the linear ODE, or from the two chambers' pressure rates.
+        let (x2, d_mean) = match &self.two_chamber {
+            None => (self.coeffs.force_rate(h, &inp), 0.0),
+            Some(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, mean_pressure_pa);
+                let extra = inp.force_rate_dist_n_per_s + h.accel_dist_n_per_s;
+                let (d1, d2) = tc.pressure_rates(p1, p2, h.spool_m, piston.position_m, piston_vel, extra);
+                let (df, _) = tc.force_and_mean(d1, d2);
+                (df, 0.5 * (d1 + d2))
+            }
+        };
         let mut d_acc = self.dist.force_accel.value(t, self.seed, CHANNEL_FORCE_ACCEL)
             + self.dist.state_gain_force * h.force_n
             + self.dist.state_gain_force_rate * x2;
@@ -268,7 +284,7 @@ impl Model<'_> {
             d_acc += self.human.interaction(h.force_n - r.value, x2 - r.rate);
         }
         inp.force_accel_dist_n_per_s2 = d_acc;
-        (inp, x2, d_f_rate)
+        (inp, x2, d_f_rate, d_mean)
     }
 
     /// Apply the valve limit to a controller output.
@@ -316,7 +332,7 @@ impl Model<'_> {
         let piston = self.piston(t, x, plant, pred);
         let h = ForceChannelState { force_n: x[0], spool_m: x[1], accel_dist_n_per_s: x[2] };
         let r = self.reference_at(t, ctx);
-        let (mut inp, x2, d_f_rate) = self.environment(t, &h, piston.velocity_m_s, &r);
+        let (mut inp, x2, d_f_rate, d_mean) = self.environment(t, &h, &piston, x[5], &r);
         // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
         // da/dt = (dF_L/dt - F_f'(v)*a)/m_eff: that is the piston acceleration the force ODE
         // experiences, so it is what an ideal sensor reports.
@@ -350,9 +366,10 @@ impl Model<'_> {
         };
         inp.valve_command = out.valve_command;
         let dh = self.coeffs.derivatives(&h, &inp);
-        dx[0] = dh.force_n;
+        dx[0] = x2;
         dx[1] = dh.spool_m;
         dx[2] = dh.accel_dist_n_per_s;
+        dx[5] = d_mean;
         if let Some(p) = pred {
             dx[3] = piston.velocity_m_s;
             dx[4] = p.free_accel_m_s2 + (x[0] - self.friction.force_n(v_state)) / p.effective_mass_kg;
@@ -362,15 +379,31 @@ impl Model<'_> {
         if sl > 0.0 && x[1].abs() >= sl && dx[1] * x[1] > 0.0 {
             dx[1] = 0.0;
         }
-        let (lo, hi) = self.force_bounds;
-        let force_limited = x[0] <= lo || x[0] >= hi;
-        if (x[0] >= hi && dx[0] > 0.0) || (x[0] <= lo && dx[0] < 0.0) {
-            dx[0] = 0.0;
-        }
-        // True dx2/dt, and the part of it the controller's nominal model does not explain.
-        let c = &self.coeffs;
-        let dx2 = c.n1 * dh.spool_m - c.n2 * piston.accel_m_s2 - c.n3 * x2 + d_f_rate + inp.force_accel_dist_n_per_s2;
-        let lumped_d = dx2 - self.nominal.force_accel(out.valve_command, &y);
+        let force_limited = match &self.two_chamber {
+            None => {
+                let (lo, hi) = self.force_bounds;
+                if (x[0] >= hi && dx[0] > 0.0) || (x[0] <= lo && dx[0] < 0.0) {
+                    dx[0] = 0.0;
+                }
+                x[0] <= lo || x[0] >= hi
+            }
+            // The chamber pressures hold themselves in [p_r, p_s].
+            Some(tc) => {
+                let (p1, p2) = tc.pressures(x[0], x[5]);
+                p1 <= tc.p_r || p1 >= tc.p_s || p2 <= tc.p_r || p2 >= tc.p_s
+            }
+        };
+        // True dx2/dt (linear model, analytic), and the part of it the controller's nominal
+        // model does not explain. For the two-chamber model it is left to the record (NaN).
+        let lumped_d = match &self.two_chamber {
+            None => {
+                let c = &self.coeffs;
+                let dx2 =
+                    c.n1 * dh.spool_m - c.n2 * piston.accel_m_s2 - c.n3 * x2 + d_f_rate + inp.force_accel_dist_n_per_s2;
+                dx2 - self.nominal.force_accel(out.valve_command, &y)
+            }
+            Some(_) => f64::NAN,
+        };
         Eval { dx, out, x2, lumped_d, force_limited }
     }
 
@@ -380,7 +413,26 @@ impl Model<'_> {
         if sl > 0.0 {
             x[1] = x[1].clamp(-sl, sl);
         }
-        x[0] = x[0].clamp(self.force_bounds.0, self.force_bounds.1);
+        match &self.two_chamber {
+            None => x[0] = x[0].clamp(self.force_bounds.0, self.force_bounds.1),
+            Some(tc) => {
+                let (p1, p2) = tc.pressures(x[0], x[5]);
+                let (p1, p2) = tc.clamp(p1, p2);
+                (x[0], x[5]) = tc.force_and_mean(p1, p2);
+            }
+        }
+    }
+
+    /// Apply a piston stroke `dx` (m) at position `xc` that the force ODE did not see.
+    fn apply_missed_stroke(&self, x: &mut X, xc: f64, dx: f64) {
+        match &self.two_chamber {
+            None => x[0] -= self.coeffs.n2 * dx,
+            Some(tc) => {
+                let (p1, p2) = tc.pressures(x[0], x[5]);
+                let (d1, d2) = tc.pressure_change_for_stroke(xc, dx);
+                (x[0], x[5]) = tc.force_and_mean(p1 + d1, p2 + d2);
+            }
+        }
     }
 
     /// The net force the actuator applies to the mechanics.
@@ -402,6 +454,7 @@ impl Model<'_> {
             2 => "accel_disturbance_integral_n_per_s".into(),
             3 => "predicted_piston_m".into(),
             4 => "predicted_piston_velocity_m_s".into(),
+            5 => "mean_chamber_pressure_pa".into(),
             _ => self.controller.state_names().get(i - NH).cloned().unwrap_or_else(|| format!("x{i}")),
         }
     }
@@ -468,6 +521,10 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         friction: &f.friction,
         act: &f.actuator,
         force_bounds,
+        two_chamber: match f.hydraulics.model {
+            HydraulicModel::Linear => None,
+            HydraulicModel::TwoChamber => Some(TwoChamber::new(&f.hydraulics)),
+        },
         seed: f.seed,
     };
     let mut start_on_trajectory = false;
@@ -498,6 +555,12 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
     // Initial state: F_L(0) = 0, spool centred; the controller is initialised from the first
     // reading inside the loop (after the piston predictor has set the piston states).
     let mut x: X = [0.0; NX];
+    if let Some(tc) = &model.two_chamber {
+        // Start at the two-chamber equilibrium with F_L = 0 (pressures and balancing spool).
+        let (p1, p2, xv) = tc.operating_point();
+        (x[0], x[5]) = tc.force_and_mean(p1, p2);
+        x[1] = xv;
+    }
     let ns = model.controller.state_len();
     let mut ctx = StepCtx { held: sample_every.map(|_| ControlOutput::default()), ..Default::default() };
     let mut rec = Record::with_capacity(steps + 1, plant.extra_names());
@@ -614,7 +677,8 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
                 Some(_) => x[3] - x_start[3],
                 None => plant.piston_at(t + dt).position_m - plant.piston_at(t).position_m,
             };
-            x[0] -= model.coeffs.n2 * (stroke - seen);
+            let xc = plant.piston_at(t + dt).position_m;
+            model.apply_missed_stroke(&mut x, xc, stroke - seen);
         }
         model.clamp(&mut x);
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {

@@ -16,15 +16,31 @@
 
 mod actuator;
 mod friction;
+mod two_chamber;
 pub use actuator::*;
 pub use friction::*;
+pub use two_chamber::*;
 
 use serde::{Deserialize, Serialize};
+
+/// Which hydraulic plant model integrates the force channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HydraulicModel {
+    /// The paper's linear force ODE (Eq. 1).
+    Linear,
+    /// Two chambers with orifice flow and pressure limits (see [`TwoChamber`]).
+    TwoChamber,
+}
 
 /// Physical parameters of the valve and cylinder (paper Table 1 plus our documented defaults).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct HydraulicParams {
+    /// `linear` (default, the paper's) or `two_chamber`.
+    pub model: HydraulicModel,
+    /// Return (tank) pressure (Pa), two-chamber model. Default 0. >= 0, < supply.
+    pub return_pressure_pa: f64,
     /// Oil bulk modulus beta (Pa). Default 1.517e9 (paper Table 1). Must be > 0.
     pub beta_pa: f64,
     /// Chamber plus hose volume V0 (m^3). Default 1.0e-4 (our assumption; the paper gives none). > 0.
@@ -52,6 +68,8 @@ pub struct HydraulicParams {
 impl Default for HydraulicParams {
     fn default() -> Self {
         Self {
+            model: HydraulicModel::Linear,
+            return_pressure_pa: 0.0,
             beta_pa: 1.517e9,
             v0_m3: 1.0e-4,
             a1_m2: 3.25e-4,
