@@ -24,6 +24,7 @@ pub mod reference;
 pub mod scenario;
 pub mod sensors;
 pub mod sim;
+pub mod sweep;
 
 pub use error::{Error, Result};
 pub use scenario::Scenario;

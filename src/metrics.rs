@@ -1,7 +1,7 @@
 //! The metric definitions of MODEL.md section 6, defined once and used by the CLI, the
 //! comparison, sweeps and tests.
 
-use crate::scenario::{Scenario, ScenarioFile};
+use crate::scenario::{CriteriaSection, Scenario, ScenarioFile};
 use crate::sim::Record;
 use serde::Serialize;
 
@@ -195,4 +195,33 @@ mod tests {
         assert!((rms(&[3.0, -4.0]) - (12.5f64).sqrt()).abs() < 1e-15);
         assert_eq!(settle_index(&t, 0.2), 2);
     }
+}
+
+/// One checked criterion.
+#[derive(Debug, Clone, Serialize)]
+pub struct CriterionResult {
+    /// The `criteria.*` key.
+    pub name: &'static str,
+    /// The limit.
+    pub limit: f64,
+    /// The measured value (NaN if the run has no such figure).
+    pub value: f64,
+    /// value <= limit.
+    pub pass: bool,
+}
+
+/// Check a summary against the scenario's criteria (only those that are set).
+pub fn check_criteria(c: &CriteriaSection, s: &Summary) -> Vec<CriterionResult> {
+    let nan = f64::NAN;
+    [
+        ("max_force_error_n", c.max_force_error_n, s.max_abs_force_error_after_settle_n),
+        ("rms_force_error_n", c.rms_force_error_n, s.rms_force_error_after_settle_n),
+        ("knee_rms_error_deg", c.knee_rms_error_deg, s.knee_rms_error_deg.unwrap_or(nan)),
+        ("knee_max_error_deg", c.knee_max_error_deg, s.knee_max_abs_error_deg.unwrap_or(nan)),
+        ("max_valve_saturation_fraction", c.max_valve_saturation_fraction, s.valve_saturation_fraction),
+        ("max_force_limit_fraction", c.max_force_limit_fraction, s.force_limit_fraction),
+    ]
+    .into_iter()
+    .filter_map(|(name, limit, value)| limit.map(|limit| CriterionResult { name, limit, value, pass: value <= limit }))
+    .collect()
 }

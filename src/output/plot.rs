@@ -138,3 +138,65 @@ pub fn knee_tracking_png(path: &Path, r: &Record, title: &str) -> Result<()> {
         ],
     )
 }
+
+/// Histograms of sweep results, one panel per metric, with the criterion limit marked.
+pub fn histograms_png(path: &Path, title: &str, panels: &[(&str, Vec<f64>, Option<f64>)]) -> Result<()> {
+    ensure_font();
+    let (w, h) = (1000u32, 280 * panels.len().max(1) as u32 + 60);
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    let perr = |e: String| Error::Write { path: path.to_path_buf(), message: format!("plot: {e}") };
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| perr(e.to_string()))?;
+        let root = root.titled(title, ("sans-serif", 20)).map_err(|e| perr(e.to_string()))?;
+        for (area, (label, vals, limit)) in root.split_evenly((panels.len().max(1), 1)).iter().zip(panels) {
+            let lo = vals.iter().copied().fold(f64::INFINITY, f64::min).min(limit.unwrap_or(f64::INFINITY));
+            let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max).max(limit.unwrap_or(f64::NEG_INFINITY));
+            let (lo, hi) = if lo.is_finite() && hi > lo { (lo, hi) } else { (lo.min(0.0), lo.max(0.0) + 1.0) };
+            let bins = 20usize;
+            let width = (hi - lo) / bins as f64;
+            let mut counts = vec![0u32; bins];
+            for v in vals {
+                let i = (((v - lo) / width) as usize).min(bins - 1);
+                counts[i] += 1;
+            }
+            let top = counts.iter().copied().max().unwrap_or(1).max(1) as f64 * 1.1;
+            let mut chart = ChartBuilder::on(area)
+                .margin(8)
+                .x_label_area_size(36)
+                .y_label_area_size(50)
+                .build_cartesian_2d(lo..hi + 1e-12, 0.0..top)
+                .map_err(|e| perr(e.to_string()))?;
+            chart
+                .configure_mesh()
+                .x_desc(*label)
+                .y_desc("runs")
+                .label_style(("sans-serif", 14))
+                .draw()
+                .map_err(|e| perr(e.to_string()))?;
+            chart
+                .draw_series(counts.iter().enumerate().map(|(i, c)| {
+                    let x0 = lo + i as f64 * width;
+                    Rectangle::new([(x0, 0.0), (x0 + width, *c as f64)], BLUE.mix(0.6).filled())
+                }))
+                .map_err(|e| perr(e.to_string()))?;
+            if let Some(l) = limit {
+                chart
+                    .draw_series(LineSeries::new(vec![(*l, 0.0), (*l, top)], RED.stroke_width(3)))
+                    .map_err(|e| perr(e.to_string()))?
+                    .label("criterion limit")
+                    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK)
+                    .label_font(("sans-serif", 14))
+                    .draw()
+                    .map_err(|e| perr(e.to_string()))?;
+            }
+        }
+        root.present().map_err(|e| perr(e.to_string()))?;
+    }
+    let img = image_png(&buf, w, h).map_err(perr)?;
+    write_atomic(path, &img)
+}

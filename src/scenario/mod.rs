@@ -270,6 +270,25 @@ pub struct MetricsSection {
     pub settle_s: f64,
 }
 
+/// `[criteria]`: pass/fail limits checked after a run (absent = not checked). A run whose
+/// criteria fail still writes its outputs and exits with code 4.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CriteriaSection {
+    /// Limit on max |F_L - F_d| after the settling window (N).
+    pub max_force_error_n: Option<f64>,
+    /// Limit on the RMS force error after the settling window (N).
+    pub rms_force_error_n: Option<f64>,
+    /// Limit on the knee RMS error after the settling window (deg).
+    pub knee_rms_error_deg: Option<f64>,
+    /// Limit on max |knee error| after the settling window (deg).
+    pub knee_max_error_deg: Option<f64>,
+    /// Limit on the fraction of samples with the valve command saturated.
+    pub max_valve_saturation_fraction: Option<f64>,
+    /// Limit on the fraction of samples at the supply-pressure force limit.
+    pub max_force_limit_fraction: Option<f64>,
+}
+
 /// The scenario file as written (every key defaulted). Also what `summary.json` records.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -302,6 +321,8 @@ pub struct ScenarioFile {
     pub human: HumanParams,
     /// Metric settings.
     pub metrics: MetricsSection,
+    /// Pass/fail criteria.
+    pub criteria: CriteriaSection,
 }
 
 impl Default for ScenarioFile {
@@ -321,6 +342,7 @@ impl Default for ScenarioFile {
             disturbance: Disturbances::default(),
             human: HumanParams::default(),
             metrics: MetricsSection::default(),
+            criteria: CriteriaSection::default(),
         }
     }
 }

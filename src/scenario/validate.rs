@@ -212,5 +212,26 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
         c.positive("metrics.convergence_band_n", b)?;
     }
     c.non_negative("metrics.settle_s", f.metrics.settle_s)?;
+    let cr = &f.criteria;
+    for (k, v) in [
+        ("criteria.max_force_error_n", cr.max_force_error_n),
+        ("criteria.rms_force_error_n", cr.rms_force_error_n),
+        ("criteria.knee_rms_error_deg", cr.knee_rms_error_deg),
+        ("criteria.knee_max_error_deg", cr.knee_max_error_deg),
+        ("criteria.max_valve_saturation_fraction", cr.max_valve_saturation_fraction),
+        ("criteria.max_force_limit_fraction", cr.max_force_limit_fraction),
+    ] {
+        if let Some(v) = v {
+            c.non_negative(k, v)?;
+        }
+    }
+    if (cr.knee_rms_error_deg.is_some() || cr.knee_max_error_deg.is_some()) && rf.kind != ReferenceKind::Gait {
+        return Err(c.fail("criteria", "knee criteria need a knee reference (reference.kind = \"gait\")"));
+    }
+    let h = &f.hydraulics;
+    c.non_negative("hydraulics.return_pressure_pa", h.return_pressure_pa)?;
+    if h.return_pressure_pa >= h.supply_pressure_pa {
+        return Err(c.fail("hydraulics.return_pressure_pa", "must be below hydraulics.supply_pressure_pa"));
+    }
     Ok(())
 }
