@@ -5,7 +5,7 @@ use crate::error::{Error, Result};
 use crate::leg::{generalized_inertia_at, knee_forward_acceleration, moment_arm_at, Leg, LegModel, LegSolverParams};
 use rapier3d_f64::glamx::DVec3;
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Built-in URDFs, embedded so a run needs no data path: `builtin:exo_leg` (75 kg, 1.75 m
 /// male) and `builtin:exo_leg_small` (60 kg, 1.60 m female, heavier cylinder).
@@ -49,16 +49,8 @@ impl LegParams {
         if let Some((_, text)) = BUILTIN_URDFS.iter().find(|(n, _)| *n == self.urdf) {
             return LegModel::from_urdf_str(text, &self.knee_joint).map_err(|e| bad(format!("{}: {e}", self.urdf)));
         }
-        let p = Path::new(&self.urdf);
-        let candidates: Vec<PathBuf> = if p.is_absolute() {
-            vec![p.to_path_buf()]
-        } else {
-            base_dir.map(|d| d.join(p)).into_iter().chain(std::iter::once(p.to_path_buf())).collect()
-        };
-        let found = candidates.iter().find(|c| c.is_file()).ok_or_else(|| {
-            let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
-            bad(format!("URDF file not found (tried {})", tried.join(", ")))
-        })?;
+        let found = crate::scenario::resolve_path(source_name, "leg.urdf", &self.urdf, base_dir)?;
+        let found = &found;
         LegModel::from_urdf_file(found, &self.knee_joint)
             .map_err(|e| Error::input(found.display().to_string(), "", e.to_string()))
     }

@@ -122,21 +122,29 @@ impl Default for ReferenceSection {
     }
 }
 
+/// Find a file a scenario names: an absolute path as is; a relative one next to the scenario
+/// file first (`base_dir`), then in the working directory. The error names the key and the
+/// places tried.
+pub fn resolve_path(source_name: &str, key: &str, file: &str, base_dir: Option<&Path>) -> Result<std::path::PathBuf> {
+    let p = Path::new(file);
+    let candidates: Vec<std::path::PathBuf> = if p.is_absolute() {
+        vec![p.to_path_buf()]
+    } else {
+        base_dir.map(|d| d.join(p)).into_iter().chain(std::iter::once(p.to_path_buf())).collect()
+    };
+    candidates.iter().find(|c| c.is_file()).cloned().ok_or_else(|| {
+        let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+        Error::input(source_name, key, format!("file not found (tried {})", tried.join(", ")))
+    })
+}
+
 impl ReferenceSection {
     /// Load the gait trajectory this section describes. `base_dir`: the scenario's directory.
     pub fn gait(&self, source_name: &str, base_dir: Option<&Path>) -> Result<GaitReference> {
         let (cycle, default_stride) = match &self.gait_file {
             Some(file) => {
-                let p = Path::new(file);
-                let candidates: Vec<std::path::PathBuf> = if p.is_absolute() {
-                    vec![p.to_path_buf()]
-                } else {
-                    base_dir.map(|d| d.join(p)).into_iter().chain(std::iter::once(p.to_path_buf())).collect()
-                };
-                let found = candidates.iter().find(|c| c.is_file()).ok_or_else(|| {
-                    let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
-                    Error::input(source_name, "reference.gait_file", format!("not found (tried {})", tried.join(", ")))
-                })?;
+                let found = resolve_path(source_name, "reference.gait_file", file, base_dir)?;
+                let found = &found;
                 let text = std::fs::read_to_string(found)
                     .map_err(|e| Error::Read { path: found.clone(), message: e.to_string() })?;
                 (GaitCycle::parse(&found.display().to_string(), &text, self.harmonics)?, None)
