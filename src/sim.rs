@@ -3,26 +3,30 @@
 //! One fixed step of size `dt` from `t_k` (pseudocode):
 //!
 //! ```text
+//! pred = plant.piston_predictor()                       // leg: local piston model; bench: none
+//! x[xc, vc] = pred's position and velocity at t_k
 //! if sampled mode and t_k is a sample instant:          // zero-order hold
-//!     y      = sensors.sample(truth(t_k))                // plant -> controller
+//!     y      = sensors.sample(truth(t_k))                // noise, A/D, delay, differences
+//!     F_pd   = outer knee PD from y (gait cascade)
 //!     u_hold = controller.output(t_k, ref(t_k), y, s)
-//!     s     += Ts * controller.derivatives(...)          // firmware: forward Euler
-//! w1 = human interaction from the force error at t_k        // cuff mode: held over the step
-//! integrate x = [F_L, x_v, r, s...] over [t_k, t_k+dt] with the chosen RK scheme;
+//!     s      = controller.discrete_update(s, Ts, ...)    // firmware-style update
+//! else F_pd = outer knee PD from the plant's knee state
+//! record(t_k, ...)
+//! w1 = human interaction from the force error at t_k    // held over the step
+//! integrate x = [F_L, x_v, r, xc, vc, p_mean, s...] over [t_k, t_k+dt] (euler/ode3/rk4);
 //! at every stage tau:
-//!     piston = plant.piston_at(tau)                      // prescribed or held from the leg
-//!     x2     = dF_L/dt from the force ODE (no u needed)
+//!     piston = pred ? (xc, vc + lead*a, a = a_free + (F_L - F_f(vc))/m_eff) : plant.piston_at(tau)
+//!     x2     = dF_L/dt from the force channel (linear ODE or two chambers; no u needed)
 //!     u      = continuous ? controller.output(tau, ref(tau), ideal y, s) : u_hold
 //!     u      = clamp(u, valve limit)                     // the controller is told (anti-windup)
 //!     derivatives of the force channel (+ controller state in continuous mode),
-//!     with x_v and F_L held at their limits (spool travel, p_s*A1 / p_s*A2)
-//! F_f = friction(piston velocity)
-//! miss = plant.advance(t_k, dt, F_L - F_f (or the prescribed force), w1)
-//! F_L -= n2 * miss                                       // oil spring sees the geometric stroke
+//!     with x_v and F_L (or the chamber pressures) held at their limits
+//! F_cyl  = pred ? impulse-average force of the predictor : F_L - F_f   (or prescribed / 0)
+//! stroke = plant.advance(t_k, dt, F_cyl, w1, hip target)
+//! F_L   -= n2 * (stroke - predicted stroke)              // oil spring sees the geometric stroke
 //! check every state is finite (else Error::Diverged naming the state and time)
-//! record(t_{k+1}, ...)
 //! ```
-//! Row 0 of the record is the initial state at t = 0, so a run has `steps + 1` rows.
+//! After the last step the final state is recorded, so a run has `steps + 1` rows.
 
 use crate::control::{
     self, ControlOutput, Controller, ControllerGains, Measurement, NominalModel, MAX_CONTROLLER_STATES,
@@ -540,7 +544,7 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
                 (None, None) => (30f64.to_radians(), 0.0),
             };
             let start = LegStart { knee_rad: q0, knee_rate_rad_s: qd0, hip: model.hip_reference(0.0) };
-            Box::new(LegPlant::new(lm, &f.leg, start, f.sim.dt_s, f.human.cuff_xyz, src)?)
+            Box::new(LegPlant::new(lm, &f.leg, start, f.sim.dt_s, (&f.human.cuff_link, f.human.cuff_xyz), src)?)
         }
     };
     let dt = f.sim.dt_s;

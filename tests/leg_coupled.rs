@@ -123,3 +123,17 @@ fn leg_runs_are_bit_identical() {
     assert_eq!(a.record.load_force_n, b.record.load_force_n);
     assert_eq!(a.record.extra, b.record.extra);
 }
+
+#[test]
+fn cuff_link_must_move_with_the_shank() {
+    let base = ["sim.duration_s=0.2", "controller.kind=\"znn\"", "human.mode=\"cuff\"", "human.k_p=2.0"];
+    // The foot is fixed to the shank: a cuff there (40 cm below the knee in the shank frame).
+    let foot = leg_run(&[&base[..], &["human.cuff_link=\"foot\"", "human.cuff_xyz=[0.0, 0.0, 0.0]"]].concat());
+    let shank = leg_run(&[&base[..], &["human.cuff_link=\"shank\"", "human.cuff_xyz=[0.0, 0.0, -0.2]"]].concat());
+    let (qf, qs) =
+        (foot.record.extra_column("knee_angle_deg").unwrap(), shank.record.extra_column("knee_angle_deg").unwrap());
+    assert!(qf.iter().zip(qs).any(|(a, b)| (a - b).abs() > 1e-6), "a longer lever must act differently");
+    let e = exoleg::run(&common::leg_scenario(&[&base[..], &["human.cuff_link=\"thigh\""]].concat())).unwrap_err();
+    assert_eq!(e.exit_code(), 2);
+    assert!(e.to_string().contains("human.cuff_link") && e.to_string().contains("fixed to it"), "{e}");
+}

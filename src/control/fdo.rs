@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ObserverParams {
-    /// Gain L (1/s^... acts on Xi in N/s to give N/s^2; the paper uses 1). Default 1. > 0.
+    /// Gain L (1/s): D_hat = L*psi(Xi) turns Xi (N/s) into N/s^2. Default 1 (the paper's). > 0.
     pub gain: f64,
     /// Exponent r in (0, 1). Default 1/3.
     pub exponent: f64,

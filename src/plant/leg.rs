@@ -56,6 +56,27 @@ impl LegParams {
     }
 }
 
+/// The cuff point (m) in the shank frame, for a cuff on the shank or on a link fixed to it.
+fn cuff_point_in_shank(
+    model: &LegModel,
+    leg: &Leg,
+    shank: usize,
+    cuff: (&str, [f64; 3]),
+) -> std::result::Result<[f64; 3], String> {
+    let (name, xyz) = cuff;
+    let link = model.link_index(name).ok_or_else(|| format!("no link `{name}` in the URDF"))?;
+    // Walk up through fixed joints: the cuff must move with the shank.
+    let mut cur = link;
+    while cur != shank {
+        let j = model.joints().iter().find(|j| j.child == cur && j.kind == crate::leg::JointKind::Fixed).ok_or_else(
+            || format!("`{name}` is not the shank (`{}`) or a link fixed to it", model.links()[shank].name),
+        )?;
+        cur = j.parent;
+    }
+    let world = leg.link_pose(link) * DVec3::from(xyz);
+    Ok((leg.link_pose(shank).inverse() * world).into())
+}
+
 /// Initial state of the leg: knee angle and rate, and the hip trajectory sample at t = 0 when
 /// the hip is driven (`None`: thigh fixed).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -138,7 +159,7 @@ impl LegPlant {
         p: &LegParams,
         start: LegStart,
         dt_s: f64,
-        cuff_point: [f64; 3],
+        cuff: (&str, [f64; 3]),
         source_name: &str,
     ) -> Result<Self> {
         let params = LegSolverParams { solver_iterations: p.solver_iterations, ..Default::default() };
@@ -159,6 +180,8 @@ impl LegPlant {
         let knee = model.knee_joint();
         let knee_axis = DVec3::from(knee.axis).normalize();
         let shank_link = knee.child;
+        let cuff_point = cuff_point_in_shank(&model, &leg, shank_link, cuff)
+            .map_err(|m| Error::input(source_name, "human.cuff_link", m))?;
         let mass = MassTable::new(&model)?;
         // xc_ddot = dL/dq * q_ddot + d(dL/dq)/dq * q_dot^2, with no cylinder force.
         let arm = moment_arm_at(&model, q0);
