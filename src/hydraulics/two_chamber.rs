@@ -137,7 +137,6 @@ impl TwoChamber {
     /// opening (m) for which both pressure rates vanish (Newton's method on mean pressure and
     /// spool, from the no-leakage operating point).
     pub fn operating_point(&self) -> (f64, f64, f64) {
-        let a = self.a1 + self.a2;
         let mut pm = 0.5 * (self.p_s + self.p_r);
         let mut xv = 0.0;
         let res = |pm: f64, xv: f64| {
@@ -145,7 +144,6 @@ impl TwoChamber {
             let (d1, d2) = self.pressure_rates(p1, p2, xv, 0.0, 0.0, 0.0);
             (d1, d2)
         };
-        let _ = a;
         for _ in 0..50 {
             let (f1, f2) = res(pm, xv);
             let (hp, hx) = (1.0, 1e-9);
