@@ -110,6 +110,15 @@ fn to_generic(j: &JointSpec) -> GenericJoint {
     GenericJointBuilder::new(mask).local_frame1(origin * align).local_frame2(align).contacts_enabled(false).build()
 }
 
+/// Inertia tensor (kg m^2, link frame) times an angular velocity or acceleration.
+fn inertia_times(i: &[[f64; 3]; 3], w: DVec3) -> DVec3 {
+    DVec3::new(
+        i[0][0] * w.x + i[0][1] * w.y + i[0][2] * w.z,
+        i[1][0] * w.x + i[1][1] * w.y + i[1][2] * w.z,
+        i[2][0] * w.x + i[2][1] * w.y + i[2][2] * w.z,
+    )
+}
+
 /// Index of the single free coordinate in `MultibodyJoint::coords()` (LinX = 0, AngX = 3).
 fn coord_index(kind: JointKind) -> usize {
     match kind {
@@ -579,12 +588,7 @@ impl Leg {
             let c = pose * DVec3::from(l.com_m);
             let f = -l.mass_kg * alpha.cross(c);
             let w = pose.rotation.inverse() * alpha;
-            let i = &l.inertia_kg_m2;
-            let iw = DVec3::new(
-                i[0][0] * w.x + i[0][1] * w.y + i[0][2] * w.z,
-                i[1][0] * w.x + i[1][1] * w.y + i[1][2] * w.z,
-                i[2][0] * w.x + i[2][1] * w.y + i[2][2] * w.z,
-            );
+            let iw = inertia_times(&l.inertia_kg_m2, w);
             let rb = &mut self.world.bodies[h];
             rb.add_force_at_point(f, c, true);
             rb.add_torque(-(pose.rotation * iw), true);
@@ -615,12 +619,7 @@ impl Leg {
                 let pose = *rb.position() * self.link_offset[li];
                 let vl = lin + ang.cross(pose * DVec3::from(l.com_m) - cb);
                 let w = pose.rotation.inverse() * ang;
-                let i = &l.inertia_kg_m2;
-                let iw = DVec3::new(
-                    i[0][0] * w.x + i[0][1] * w.y + i[0][2] * w.z,
-                    i[1][0] * w.x + i[1][1] * w.y + i[1][2] * w.z,
-                    i[2][0] * w.x + i[2][1] * w.y + i[2][2] * w.z,
-                );
+                let iw = inertia_times(&l.inertia_kg_m2, w);
                 ke += 0.5 * l.mass_kg * vl.length_squared() + 0.5 * w.dot(iw);
             }
         }
