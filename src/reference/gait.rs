@@ -89,12 +89,15 @@ impl FourierSeries {
     /// Value and first and second derivatives at `x`.
     pub fn eval(&self, x: f64) -> (f64, f64, f64) {
         let (mut v, mut d1, mut d2) = (self.c0, 0.0, 0.0);
+        // sin/cos of k*w*x by the angle-addition recurrence: one sin_cos per evaluation.
+        let (s1, c1) = (self.w * x).sin_cos();
+        let (mut s, mut c) = (s1, c1);
         for (k, (a, b)) in self.a.iter().zip(&self.b).enumerate() {
             let kw = (k + 1) as f64 * self.w;
-            let (s, c) = (kw * x).sin_cos();
             v += a * c + b * s;
             d1 += kw * (b * c - a * s);
             d2 -= kw * kw * (a * c + b * s);
+            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
         }
         (v, d1, d2)
     }
