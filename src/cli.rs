@@ -190,6 +190,9 @@ pub fn run(cli: Cli) -> Result<i32> {
         }
         Command::Sweep { scenario, grids, monte_carlo, vary, sets, jobs, out, run_outputs, quiet } => {
             let base = Scenario::load(Some(&scenario), &sets)?;
+            if monte_carlo == Some(0) {
+                return Err(Error::input("--monte-carlo", "0", "need at least one run"));
+            }
             let runs = if let Some(n) = monte_carlo {
                 let vary: Vec<(String, sweep::Dist)> =
                     vary.iter().map(|v| sweep::parse_vary(v)).collect::<Result<_>>()?;
@@ -218,6 +221,9 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Robustness { scenario, percent, samples, sets, jobs, out, quiet } => {
             if !(percent.is_finite() && (0.0..100.0).contains(&percent)) {
                 return Err(Error::input("--percent", percent.to_string(), "must be in [0, 100)"));
+            }
+            if samples == 0 {
+                return Err(Error::input("--samples", "0", "need at least one run"));
             }
             let base = Scenario::load(Some(&scenario), &sets)?;
             let (pinned, runs) = sweep::robustness_runs(&base, samples, percent)?;

@@ -1,7 +1,7 @@
 //! The metric definitions of MODEL.md section 6, defined once and used by the CLI, the
 //! comparison, sweeps and tests.
 
-use crate::scenario::{CriteriaSection, Scenario, ScenarioFile};
+use crate::scenario::{CriteriaSection, ReferenceKind, Scenario, ScenarioFile};
 use crate::sim::Record;
 use serde::Serialize;
 
@@ -149,7 +149,12 @@ pub struct Summary {
 
 /// Compute the summary of a finished run.
 pub fn summarise(s: &Scenario, r: &Record, wall_time_s: f64) -> Summary {
-    let band = s.convergence_band_n();
+    // 1% of the reference amplitude: the sine's, or for a gait run (whose desired force is not
+    // a sine) 1% of the largest |F_d| of the run, unless the scenario sets the band.
+    let band = match (s.file.metrics.convergence_band_n, s.file.reference.kind) {
+        (None, ReferenceKind::Gait) => 0.01 * max_abs(&r.ref_force_n),
+        _ => s.convergence_band_n(),
+    };
     let settle = s.file.metrics.settle_s;
     let i0 = settle_index(&r.t_s, settle);
     let steps = r.t_s.len().saturating_sub(1);

@@ -159,10 +159,15 @@ struct Differentiator {
 }
 
 impl Differentiator {
-    fn update(&mut self, x: f64, ts: f64, alpha: f64) -> f64 {
-        let raw = self.prev.map_or(0.0, |p| (x - p) / ts);
+    /// Next filtered difference. At the first sample there is no previous reading: the
+    /// firmware is taken to start from the true rate `initial` (the plant is not assumed at
+    /// rest: gait runs start moving).
+    fn update(&mut self, x: f64, ts: f64, alpha: f64, initial: f64) -> f64 {
+        match self.prev {
+            None => self.out = initial,
+            Some(p) => self.out += alpha * ((x - p) / ts - self.out),
+        }
         self.prev = Some(x);
-        self.out += alpha * (raw - self.out);
         self.out
     }
 }
@@ -248,10 +253,10 @@ impl SampledSensors {
         // Until the delay line fills, firmware sees its first reading.
         let r = if self.line.len() > self.delay { self.line.pop_front().unwrap() } else { self.line[0] };
         let (ts, a) = (self.period_s, self.alpha);
-        let force_rate = self.d_force.update(r[0], ts, a);
-        let vel = self.d_piston.update(r[2], ts, a);
-        let acc = self.d_piston_vel.update(vel, ts, a);
-        let knee_rate = self.d_knee.update(r[3], ts, a);
+        let force_rate = self.d_force.update(r[0], ts, a, truth.force_rate_n_per_s);
+        let vel = self.d_piston.update(r[2], ts, a, truth.piston_velocity_m_s);
+        let acc = self.d_piston_vel.update(vel, ts, a, truth.piston_accel_m_s2);
+        let knee_rate = self.d_knee.update(r[3], ts, a, truth.knee_rate_rad_s);
         Measurement {
             force_n: r[0],
             force_rate_n_per_s: force_rate,

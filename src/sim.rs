@@ -52,6 +52,8 @@ const NH: usize = 6;
 /// Length of the integrated state vector.
 const NX: usize = NH + MAX_CONTROLLER_STATES;
 type X = [f64; NX];
+/// Spool travel (m) past which a run is declared unstable.
+const MAX_PLAUSIBLE_SPOOL_M: f64 = 1.0;
 
 /// Recorded time series, one entry per row (column-major). Units in the field names.
 #[derive(Debug, Clone, Default)]
@@ -337,6 +339,11 @@ impl Model<'_> {
         let h = ForceChannelState { force_n: x[0], spool_m: x[1], accel_dist_n_per_s: x[2] };
         let r = self.reference_at(t, ctx);
         let (mut inp, x2, d_f_rate, d_mean) = self.environment(t, &h, &piston, x[5], &r);
+        // Held at a supply-pressure bound (linear model), the load force does not move: the
+        // load cell's rate is 0, and that is what the controller and the record see.
+        let (lo, hi) = self.force_bounds;
+        let x2 =
+            if self.two_chamber.is_none() && ((x[0] >= hi && x2 > 0.0) || (x[0] <= lo && x2 < 0.0)) { 0.0 } else { x2 };
         // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
         // da/dt = (dF_L/dt - F_f'(v)*a)/m_eff: that is the piston acceleration the force ODE
         // experiences, so it is what an ideal sensor reports.
@@ -605,7 +612,6 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
     };
 
     let hydraulic = model.act.mode == ActuatorMode::Hydraulic;
-    let mut last_w1 = 0.0;
     for k in 0..steps {
         let t = k as f64 * dt;
         // The leg's local piston model for this step (None for a prescribed piston).
@@ -620,8 +626,9 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
             let r = model.reference_at(0.0, &ctx);
             let v = model.piston(0.0, &x, plant.as_ref(), ctx.pred.as_ref()).velocity_m_s;
             let c = &model.coeffs;
-            x[0] = r.value;
-            x[1] = (r.rate + c.n2 * v + c.n3 * r.value - c.n4) / c.n1;
+            let (lo, hi) = model.force_bounds;
+            x[0] = r.value.clamp(lo, hi);
+            x[1] = (r.rate + c.n2 * v + c.n3 * x[0] - c.n4) / c.n1;
         }
         match (sample_every, sensors.as_mut()) {
             (Some(m), Some(sens)) => {
@@ -688,7 +695,11 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
             return Err(Error::Diverged { time_s: t + dt, state: model.state_name(i), value: x[i] });
         }
-        last_w1 = w1;
+        // No valve spool travels a metre: a run whose spool does has gone unstable even if the
+        // numbers are still finite (e.g. held against a pressure limit).
+        if x[1].abs() > MAX_PLAUSIBLE_SPOOL_M {
+            return Err(Error::Diverged { time_s: t + dt, state: "spool_m (beyond 1 m)".into(), value: x[1] });
+        }
     }
     // The final row, evaluated the way the next step would see it.
     let t_end = steps as f64 * dt;
@@ -698,7 +709,12 @@ pub fn run(scenario: &Scenario) -> Result<RunOutput> {
         x[4] = p.velocity_m_s;
     }
     let e = model.eval(t_end, &x, plant.as_ref(), &ctx);
-    record(t_end, &x, &e, last_w1, &ctx, &mut rec, plant.as_ref());
+    let r_end = model.reference_at(t_end, &ctx);
+    let w1_end = match model.human.mode {
+        HumanMode::Cuff | HumanMode::Paper => model.human.interaction(x[0] - r_end.value, e.x2 - r_end.rate),
+        HumanMode::Off => 0.0,
+    };
+    record(t_end, &x, &e, w1_end, &ctx, &mut rec, plant.as_ref());
     let wall = start.elapsed().as_secs_f64();
     let summary = metrics::summarise(scenario, &rec, wall);
     Ok(RunOutput { record: rec, summary })

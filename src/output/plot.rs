@@ -152,7 +152,11 @@ pub fn histograms_png(path: &Path, title: &str, panels: &[(&str, Vec<f64>, Optio
         for (area, (label, vals, limit)) in root.split_evenly((panels.len().max(1), 1)).iter().zip(panels) {
             let lo = vals.iter().copied().fold(f64::INFINITY, f64::min).min(limit.unwrap_or(f64::INFINITY));
             let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max).max(limit.unwrap_or(f64::NEG_INFINITY));
-            let (lo, hi) = if lo.is_finite() && hi > lo { (lo, hi) } else { (lo.min(0.0), lo.max(0.0) + 1.0) };
+            let (lo, hi) = match (lo.is_finite(), hi.is_finite()) {
+                (true, true) if hi > lo => (lo, hi),
+                (true, _) => (lo - 0.5, lo + 0.5),
+                _ => (0.0, 1.0), // no finished run and no limit: an empty panel
+            };
             let bins = 20usize;
             let width = (hi - lo) / bins as f64;
             let mut counts = vec![0u32; bins];

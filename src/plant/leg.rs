@@ -74,7 +74,13 @@ fn cuff_point_in_shank(
         cur = j.parent;
     }
     let world = leg.link_pose(link) * DVec3::from(xyz);
-    Ok((leg.link_pose(shank).inverse() * world).into())
+    let local = leg.link_pose(shank).inverse() * world;
+    // The shank frame sits on the knee: a point on the knee axis has no lever arm.
+    let axis = DVec3::from(model.knee_joint().axis).normalize();
+    if local.cross(axis).length() < 1e-3 {
+        return Err(format!("the cuff point {xyz:?} of `{name}` lies on the knee axis: it cannot move the knee"));
+    }
+    Ok(local.into())
 }
 
 /// Initial state of the leg: knee angle and rate, and the hip trajectory sample at t = 0 when
@@ -164,6 +170,20 @@ impl LegPlant {
     ) -> Result<Self> {
         let params = LegSolverParams { solver_iterations: p.solver_iterations, ..Default::default() };
         let (q0, qd0, hip) = (start.knee_rad, start.knee_rate_rad_s, start.hip);
+        let (lo, hi) = model.knee_range_rad();
+        let outside = (lo - q0).max(q0 - hi).max(0.0);
+        if outside > 20f64.to_radians() {
+            return Err(Error::input(
+                source_name,
+                "leg.initial_knee_deg",
+                format!(
+                    "{:.2} deg is outside the URDF knee range [{:.1}, {:.1}] deg by more than 20 deg",
+                    q0.to_degrees(),
+                    lo.to_degrees(),
+                    hi.to_degrees()
+                ),
+            ));
+        }
         let bad = |e: crate::leg::LegError| Error::input(source_name, "leg.initial_knee_deg", e.to_string());
         let mut leg = match &hip {
             None => Leg::with_params(&model, q0, dt_s, params),

@@ -272,7 +272,8 @@ impl Default for ControllerSection {
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MetricsSection {
-    /// Band for the convergence time (N). Default: 1% of the reference amplitude.
+    /// Band for the convergence time (N). Default: 1% of the reference amplitude (sine) or of
+    /// the largest desired force of the run (gait).
     pub convergence_band_n: Option<f64>,
     /// Settling window excluded from the "after settling" figures (s). Default 0. >= 0.
     pub settle_s: f64,

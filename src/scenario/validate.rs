@@ -74,8 +74,18 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     }
     c.positive("sim.dt_s", f.sim.dt_s)?;
     c.positive("sim.duration_s", f.sim.duration_s)?;
-    if f.sim.duration_s / f.sim.dt_s > 1e9 {
+    let ratio = f.sim.duration_s / f.sim.dt_s;
+    if ratio > 1e9 {
         return Err(c.fail("sim.duration_s", "more than 1e9 steps: increase sim.dt_s or shorten the run"));
+    }
+    if ratio < 1.0 - 1e-9 || (ratio - ratio.round()).abs() > 1e-6 * ratio.max(1.0) {
+        return Err(c.fail(
+            "sim.duration_s",
+            format!(
+                "must be a whole number (>= 1) of steps of sim.dt_s = {}, got {} ({ratio} steps)",
+                f.sim.dt_s, f.sim.duration_s
+            ),
+        ));
     }
 
     let h = &f.hydraulics;
@@ -185,6 +195,9 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
             return Err(c.fail(&format!("{key}.bits"), "must be at most 52 (f64 resolution)"));
         }
     }
+    if f.sensors.delay_samples > 100_000 {
+        return Err(c.fail("sensors.delay_samples", format!("at most 100000 samples, got {}", f.sensors.delay_samples)));
+    }
     if f.sensors.has_effects() && ct.sample_period_s == 0.0 {
         return Err(c.fail(
             "sensors",
@@ -212,6 +225,12 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
         c.positive("metrics.convergence_band_n", b)?;
     }
     c.non_negative("metrics.settle_s", f.metrics.settle_s)?;
+    if f.metrics.settle_s >= f.sim.duration_s {
+        return Err(c.fail(
+            "metrics.settle_s",
+            format!("must be shorter than sim.duration_s = {} (nothing would be left to measure)", f.sim.duration_s),
+        ));
+    }
     let cr = &f.criteria;
     for (k, v) in [
         ("criteria.max_force_error_n", cr.max_force_error_n),
