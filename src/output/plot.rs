@@ -74,18 +74,25 @@ pub fn stacked_png(path: &Path, title: &str, t_s: &[f64], panels: &[Panel]) -> R
                     .label(*name)
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .draw()
-                .map_err(|e| perr(e.to_string()))?;
+            draw_legend(&mut chart).map_err(perr)?;
         }
         root.present().map_err(|e| perr(e.to_string()))?;
     }
     let img = image_png(&buf, w, h).map_err(perr)?;
     write_atomic(path, &img)
+}
+
+/// The legend box every panel uses.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> std::result::Result<(), String> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(|e| e.to_string())
 }
 
 /// Encode an RGB buffer as PNG bytes (through plotters' bitmap encoder via a temp file is
@@ -190,13 +197,7 @@ pub fn histograms_png(path: &Path, title: &str, panels: &[(&str, Vec<f64>, Optio
                     .map_err(|e| perr(e.to_string()))?
                     .label("criterion limit")
                     .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.8))
-                    .border_style(BLACK)
-                    .label_font(("sans-serif", 14))
-                    .draw()
-                    .map_err(|e| perr(e.to_string()))?;
+                draw_legend(&mut chart).map_err(perr)?;
             }
         }
         root.present().map_err(|e| perr(e.to_string()))?;
