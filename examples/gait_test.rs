@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release --example gait_test`
 
-use exoleg::gait_test::GaitTest;
+use exoleg::study::gait_test::GaitTest;
 
 fn main() -> Result<(), exoleg::Error> {
     for kind in ["arbfnn_fdo_znn", "erl_smc"] {

@@ -1,13 +1,12 @@
 //! The command line (clap derive) and the dispatch behind it.
 
-use crate::compare;
 use crate::error::{Error, Result, EXIT_OK};
-use crate::metrics;
-use crate::output;
-use crate::scenario::{ReferenceKind, Scenario};
-use crate::sweep;
+use crate::metrics::{Metric, Summary};
+use crate::output::{self, OutputDir};
+use crate::scenario::{ResolvedScenario, Resources, Scenario};
+use crate::study::{self, compare, robustness, sweep};
 use clap::{Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// exoleg: force control of hydraulic lower-limb exoskeletons, simulated.
 #[derive(Debug, Parser)]
@@ -18,6 +17,20 @@ pub struct Cli {
     pub command: Command,
 }
 
+/// Options shared by `sweep` and `robustness`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SweepArgs {
+    /// Override any scenario key for all runs (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub sets: Vec<String>,
+    /// Worker threads (0 = all cores; clamped to the runs and to 256).
+    #[arg(long, default_value_t = 0)]
+    pub jobs: usize,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
 /// Sub-commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
@@ -26,7 +39,7 @@ pub enum Command {
         /// Scenario file (TOML, or a summary.json to reproduce a run). Default: the embedded
         /// paper Figure 5 case.
         scenario: Option<PathBuf>,
-        /// Output directory.
+        /// Output directory (replaced as a whole when the run completes).
         #[arg(long, default_value = "out")]
         out: PathBuf,
         /// Override any scenario key, e.g. `--set controller.gamma=200` (repeatable).
@@ -41,30 +54,24 @@ pub enum Command {
     Sweep {
         /// Base scenario (TOML).
         scenario: PathBuf,
-        /// A grid axis `key=v1,v2,...` (repeatable; the full factorial is run).
+        /// A grid axis `key=v1,v2,...` (repeatable; the full factorial is run, at most 10^6 runs).
         #[arg(long = "grid", value_name = "KEY=V1,V2,..", conflicts_with_all = ["monte_carlo", "vary"])]
         grids: Vec<String>,
-        /// Number of Monte-Carlo runs.
+        /// Number of Monte-Carlo runs (1..=10^6).
         #[arg(long = "monte-carlo", value_name = "N", requires = "vary")]
         monte_carlo: Option<usize>,
         /// A random parameter: `key=uniform(lo,hi)`, `key=normal(mean,sd)` or `key=pct(p)`.
         #[arg(long = "vary", value_name = "KEY=DIST(..)")]
         vary: Vec<String>,
-        /// Override any scenario key for all runs (repeatable).
-        #[arg(long = "set", value_name = "KEY=VALUE")]
-        sets: Vec<String>,
-        /// Worker threads (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        jobs: usize,
         /// Output directory.
         #[arg(long, default_value = "out/sweep")]
         out: PathBuf,
         /// Also write every run's time series, summary and plots to DIR/run_NNNN.
         #[arg(long)]
         run_outputs: bool,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
+        /// Shared options.
+        #[command(flatten)]
+        common: SweepArgs,
     },
     /// Robustness report: vary beta, V0, K_q, friction and the human gains by +-PERCENT % (the
     /// controller keeps the nominal model), add the paper's Table 2 disturbances, and check
@@ -75,21 +82,15 @@ pub enum Command {
         /// Half-width of the uniform variation, in percent.
         #[arg(long, default_value_t = 20.0)]
         percent: f64,
-        /// Number of runs.
+        /// Number of runs (1..=10^6).
         #[arg(long, default_value_t = 64)]
         samples: usize,
-        /// Override any scenario key for all runs (repeatable).
-        #[arg(long = "set", value_name = "KEY=VALUE")]
-        sets: Vec<String>,
-        /// Worker threads (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        jobs: usize,
         /// Output directory.
         #[arg(long, default_value = "out/robustness")]
         out: PathBuf,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
+        /// Shared options.
+        #[command(flatten)]
+        common: SweepArgs,
     },
     /// Run the paper's eight cases (Tables 3 and 4) and print ours next to the paper's.
     Compare {
@@ -107,13 +108,14 @@ pub enum Command {
     },
 }
 
-fn print_summary(s: &Scenario, m: &crate::metrics::Summary, out: &std::path::Path) {
-    println!("scenario            {}", s.source_name);
+fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
+    let f = &sc.file;
+    println!("scenario            {}", sc.source_name);
     println!(
         "controller          {}  (plant {:?}, hydraulics {:?})",
-        s.file.controller.kind.as_str(),
-        s.file.plant.kind,
-        s.file.hydraulics.model
+        f.controller.kind.as_str(),
+        f.plant.kind,
+        f.hydraulics.model
     );
     println!("max |F_L - F_d|     {:.4} N", m.max_abs_force_error_n);
     println!(
@@ -141,145 +143,158 @@ fn print_summary(s: &Scenario, m: &crate::metrics::Summary, out: &std::path::Pat
     println!("outputs             {}", out.display());
 }
 
-/// Write `runs.jsonl` and `aggregate.csv` of a sweep into `out`.
-fn write_sweep(out: &std::path::Path, lines: &[sweep::RunLine]) -> Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| Error::Write { path: out.to_path_buf(), message: e.to_string() })?;
-    output::write_atomic(&out.join("runs.jsonl"), sweep::jsonl(lines).as_bytes())?;
-    let failed = lines.iter().filter(|l| l.error.is_some()).count();
-    output::write_atomic(&out.join("aggregate.csv"), sweep::aggregate_csv(&sweep::aggregate(lines), failed).as_bytes())
+fn warn(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
 }
 
-/// Plot title: scenario, controller, plant and reference.
-fn run_title(s: &Scenario) -> String {
-    let f = &s.file;
-    let reference = match f.reference.kind {
-        ReferenceKind::Sine => format!("F_d = {} N sine at {} Hz", f.reference.amplitude_n, f.reference.frequency_hz),
-        ReferenceKind::Gait => {
-            format!("gait {}", f.reference.gait_file.as_deref().unwrap_or(&f.reference.gait_trial))
-        }
+/// `exoleg run`.
+fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bool) -> Result<i32> {
+    let sc = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
+    warn(&sc.warnings);
+    let dir = OutputDir::prepare(&out, "--out")?;
+    let report = study::run_into(&sc, dir.path(), &study::run_title(&sc), None)?;
+    dir.commit()?;
+    if !quiet {
+        print_summary(&sc, &report.summary, &out);
+    }
+    for c in &report.criteria {
+        let verdict = if c.pass { "pass" } else { "FAIL" };
+        println!("criterion {:<30} {verdict}: {:.4} (limit {:.4})", c.name, c.value, c.limit);
+    }
+    if report.passed() {
+        Ok(EXIT_OK)
+    } else {
+        let failed: Vec<&str> = report.criteria.iter().filter(|c| !c.pass).map(|c| c.name.as_str()).collect();
+        Err(Error::Criteria(format!("{} failed: {}", sc.source_name, failed.join(", "))))
+    }
+}
+
+/// Run a plan into `dir` (runs.jsonl, aggregate.csv, optional run folders).
+fn run_plan_into(
+    base: &Scenario,
+    plan: &sweep::Plan,
+    res: &Resources,
+    opts: &sweep::RunOptions,
+    dir: &OutputDir,
+    run_outputs: bool,
+) -> Result<sweep::Aggregate> {
+    let path = dir.path().join("runs.jsonl");
+    let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
+    let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
+    let agg = sweep::run_plan(base, plan, res, opts, run_outputs.then_some(dir.path()), &mut w)?;
+    use std::io::Write;
+    w.flush().map_err(werr)?;
+    output::write_atomic(&dir.path().join("aggregate.csv"), agg.csv().as_bytes())?;
+    Ok(agg)
+}
+
+/// `exoleg sweep`.
+fn cmd_sweep(
+    scenario: PathBuf,
+    grids: Vec<String>,
+    monte_carlo: Option<usize>,
+    vary: Vec<String>,
+    out: PathBuf,
+    run_outputs: bool,
+    common: SweepArgs,
+) -> Result<i32> {
+    let base = Scenario::load(Some(&scenario), &common.sets)?;
+    let plan = if let Some(n) = monte_carlo {
+        let vary: Vec<(String, sweep::Dist)> = vary.iter().map(|v| sweep::parse_vary(v)).collect::<Result<_>>()?;
+        sweep::Plan::monte_carlo(&base, n, &vary, base.file.seed)?
+    } else if !grids.is_empty() {
+        sweep::Plan::grid(grids.iter().map(|g| sweep::parse_grid(g)).collect::<Result<_>>()?)?
+    } else {
+        return Err(Error::input("sweep", "", "give --grid key=v1,v2,... or --monte-carlo N --vary key=dist(...)"));
     };
-    format!("{} | {} | {:?} | {}", s.source_name, f.controller.kind.as_str(), f.plant.kind, reference)
+    let res = Resources::new();
+    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: (0, 1) };
+    sweep::validate_plan(&base, &plan, &res, &opts)?;
+    let dir = OutputDir::prepare(&out, "--out")?;
+    let start = std::time::Instant::now();
+    let agg = run_plan_into(&base, &plan, &res, &opts, &dir, run_outputs)?;
+    dir.commit()?;
+    let wall = start.elapsed().as_secs_f64();
+    println!("{} runs in {wall:.2} s ({} diverged); {}", agg.runs, agg.failed, out.display());
+    print!("{}", agg.csv());
+    Ok(EXIT_OK)
+}
+
+/// `exoleg robustness`.
+fn cmd_robustness(scenario: PathBuf, percent: f64, samples: usize, out: PathBuf, common: SweepArgs) -> Result<i32> {
+    let base = Scenario::load(Some(&scenario), &common.sets)?;
+    let (pinned, plan) = robustness::robustness_plan(&base, samples, percent)?;
+    let res = Resources::new();
+    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: (0, 1) };
+    sweep::validate_plan(&pinned, &plan, &res, &opts)?;
+    let dir = OutputDir::prepare(&out, "--out")?;
+    let agg = run_plan_into(&pinned, &plan, &res, &opts, &dir, false)?;
+    let c = &base.file.criteria;
+    let mut panels = vec![
+        (
+            "max |F_L - F_d| after settling (N)",
+            agg.values(Metric::MaxAbsForceErrorAfterSettle).to_vec(),
+            c.max_force_error_n,
+        ),
+        (
+            "RMS force error after settling (N)",
+            agg.values(Metric::RmsForceErrorAfterSettle).to_vec(),
+            c.rms_force_error_n,
+        ),
+    ];
+    if base.file.reference.kind == crate::scenario::ReferenceKind::Gait {
+        panels.push(("knee RMS error (deg)", agg.values(Metric::KneeRmsError).to_vec(), c.knee_rms_error_deg));
+        panels.push(("knee max |error| (deg)", agg.values(Metric::KneeMaxAbsError).to_vec(), c.knee_max_error_deg));
+    }
+    let title = format!("{}: +-{percent}% parameters, Table 2 disturbances, {} runs", base.source_name, agg.runs);
+    output::histograms_png(&dir.path().join("robustness.png"), &title, &panels)?;
+    dir.commit()?;
+    println!("{title}");
+    print!("{}", agg.csv());
+    let verdict =
+        if c.any() { " the scenario's criteria" } else { " (the scenario sets no [criteria]: only divergence fails)" };
+    println!("{}/{} runs pass{verdict} ({} diverged); report in {}", agg.passed, agg.runs, agg.failed, out.display());
+    if agg.passed == agg.runs {
+        Ok(EXIT_OK)
+    } else {
+        Err(Error::Criteria(format!("{} of {} robustness runs failed", agg.runs - agg.passed, agg.runs)))
+    }
+}
+
+/// `exoleg compare`.
+fn cmd_compare(
+    scenario: Option<PathBuf>,
+    plant: Option<String>,
+    json: Option<PathBuf>,
+    sets: Vec<String>,
+) -> Result<i32> {
+    let mut all = Vec::new();
+    if let Some(p) = plant {
+        all.push(format!("plant.kind={p}"));
+    }
+    all.extend(sets);
+    let base = Scenario::load(scenario.as_deref(), &all)?;
+    let results = compare::run_cases(&base, &[])?;
+    println!("Paper cases on plant `{:?}` ({}):", base.file.plant.kind, base.source_name);
+    print!("{}", compare::table(&results));
+    if let Some(p) = json {
+        output::write_json(&p, &results)?;
+    }
+    Ok(EXIT_OK)
 }
 
 /// Execute a parsed command line. Returns the process exit code on success.
 pub fn run(cli: Cli) -> Result<i32> {
     match cli.command {
-        Command::Run { scenario, out, sets, quiet } => {
-            let s = Scenario::load(scenario.as_deref(), &sets)?;
-            let res = crate::sim::run(&s)?;
-            let checks = metrics::check_criteria(&s.file.criteria, &res.summary);
-            let passed = checks.iter().all(|c| c.pass);
-            let mut json = serde_json::to_value(&res.summary)
-                .map_err(|e| Error::Write { path: out.join("summary.json"), message: e.to_string() })?;
-            json["criteria_results"] = serde_json::to_value(&checks).unwrap_or_default();
-            json["criteria_passed"] = serde_json::Value::Bool(passed);
-            output::write_run(&out, &res.record, &json, &run_title(&s))?;
-            if !quiet {
-                print_summary(&s, &res.summary, &out);
-            }
-            for c in &checks {
-                let verdict = if c.pass { "pass" } else { "FAIL" };
-                println!("criterion {:<30} {verdict}: {:.4} (limit {:.4})", c.name, c.value, c.limit);
-            }
-            if passed {
-                Ok(EXIT_OK)
-            } else {
-                let failed: Vec<&str> = checks.iter().filter(|c| !c.pass).map(|c| c.name).collect();
-                Err(Error::Criteria(format!("{} failed: {}", s.source_name, failed.join(", "))))
-            }
+        Command::Run { scenario, out, sets, quiet } => cmd_run(scenario, out, sets, quiet),
+        Command::Sweep { scenario, grids, monte_carlo, vary, out, run_outputs, common } => {
+            cmd_sweep(scenario, grids, monte_carlo, vary, out, run_outputs, common)
         }
-        Command::Sweep { scenario, grids, monte_carlo, vary, sets, jobs, out, run_outputs, quiet } => {
-            let base = Scenario::load(Some(&scenario), &sets)?;
-            if monte_carlo == Some(0) {
-                return Err(Error::input("--monte-carlo", "0", "need at least one run"));
-            }
-            let runs = if let Some(n) = monte_carlo {
-                let vary: Vec<(String, sweep::Dist)> =
-                    vary.iter().map(|v| sweep::parse_vary(v)).collect::<Result<_>>()?;
-                sweep::monte_carlo_runs(&base, n, &vary, base.file.seed)?
-            } else if !grids.is_empty() {
-                let g: Vec<(String, Vec<String>)> =
-                    grids.iter().map(|g| sweep::parse_grid(g)).collect::<Result<_>>()?;
-                sweep::grid_runs(&g)
-            } else {
-                return Err(Error::input(
-                    "sweep",
-                    "",
-                    "give --grid key=v1,v2,... or --monte-carlo N --vary key=dist(...)",
-                ));
-            };
-            let start = std::time::Instant::now();
-            let lines =
-                sweep::run_all(&base, &runs, jobs, !quiet && runs.len() > 1, run_outputs.then_some(out.as_path()))?;
-            let wall = start.elapsed().as_secs_f64();
-            write_sweep(&out, &lines)?;
-            let failed = lines.iter().filter(|l| l.error.is_some()).count();
-            println!("{} runs in {wall:.2} s ({failed} diverged); {}", lines.len(), out.display());
-            print!("{}", sweep::aggregate_csv(&sweep::aggregate(&lines), failed));
-            Ok(EXIT_OK)
+        Command::Robustness { scenario, percent, samples, out, common } => {
+            cmd_robustness(scenario, percent, samples, out, common)
         }
-        Command::Robustness { scenario, percent, samples, sets, jobs, out, quiet } => {
-            if !(percent.is_finite() && (0.0..100.0).contains(&percent)) {
-                return Err(Error::input("--percent", percent.to_string(), "must be in [0, 100)"));
-            }
-            if samples == 0 {
-                return Err(Error::input("--samples", "0", "need at least one run"));
-            }
-            let base = Scenario::load(Some(&scenario), &sets)?;
-            let (pinned, runs) = sweep::robustness_runs(&base, samples, percent)?;
-            let lines = sweep::run_all(&pinned, &runs, jobs, !quiet && runs.len() > 1, None)?;
-            write_sweep(&out, &lines)?;
-            let c = &base.file.criteria;
-            let get = |l: &sweep::RunLine, k: &str| l.summary.as_ref().and_then(|s| s.get(k)).and_then(|x| x.as_f64());
-            let col = |k: &str| lines.iter().filter_map(|l| get(l, k)).collect::<Vec<f64>>();
-            let mut panels = vec![
-                ("max |F_L - F_d| after settling (N)", col("max_abs_force_error_after_settle_n"), c.max_force_error_n),
-                ("RMS force error after settling (N)", col("rms_force_error_after_settle_n"), c.rms_force_error_n),
-            ];
-            if base.file.reference.kind == ReferenceKind::Gait {
-                panels.push(("knee RMS error (deg)", col("knee_rms_error_deg"), c.knee_rms_error_deg));
-                panels.push(("knee max |error| (deg)", col("knee_max_abs_error_deg"), c.knee_max_error_deg));
-            }
-            let title =
-                format!("{}: +-{percent}% parameters, Table 2 disturbances, {} runs", base.source_name, lines.len());
-            output::histograms_png(&out.join("robustness.png"), &title, &panels)?;
-            let passed = lines.iter().filter(|l| l.passed).count();
-            let diverged = lines.iter().filter(|l| l.error.is_some()).count();
-            println!("{title}");
-            print!("{}", sweep::aggregate_csv(&sweep::aggregate(&lines), diverged));
-            let has_criteria = lines.iter().any(|l| !l.criteria.is_empty());
-            println!(
-                "{passed}/{} runs pass{} ({diverged} diverged); report in {}",
-                lines.len(),
-                if has_criteria {
-                    " the scenario's criteria"
-                } else {
-                    " (the scenario sets no [criteria]: only divergence fails)"
-                },
-                out.display()
-            );
-            if passed == lines.len() {
-                Ok(EXIT_OK)
-            } else {
-                Err(Error::Criteria(format!("{} of {} robustness runs failed", lines.len() - passed, lines.len())))
-            }
-        }
-        Command::Compare { scenario, plant, json, sets } => {
-            let mut all = Vec::new();
-            if let Some(p) = plant {
-                all.push(format!("plant.kind={p}"));
-            }
-            all.extend(sets);
-            let base = Scenario::load(scenario.as_deref(), &all)?;
-            let results = compare::run_cases(&base, &[])?;
-            println!("Paper cases on plant `{:?}` ({}):", base.file.plant.kind, base.source_name);
-            print!("{}", compare::table(&results));
-            if let Some(p) = json {
-                let bytes = serde_json::to_vec_pretty(&results)
-                    .map_err(|e| Error::Write { path: p.clone(), message: e.to_string() })?;
-                output::write_atomic(&p, &bytes)?;
-            }
-            Ok(EXIT_OK)
-        }
+        Command::Compare { scenario, plant, json, sets } => cmd_compare(scenario, plant, json, sets),
     }
 }

@@ -18,7 +18,7 @@ pub const EXIT_CRITERIA_FAILED: i32 = 4;
 #[non_exhaustive]
 pub enum Error {
     /// Bad user input; `source_name` is the file (or `--set`) it came from, `key` the dotted key.
-    #[error("{source_name}: {key}: {message}")]
+    #[error("{}", join_nonempty(&[.source_name, .key, .message]))]
     Input {
         /// File path or `--set` or `<embedded default>`.
         source_name: String,
@@ -64,6 +64,16 @@ impl Error {
         Error::Input { source_name: source_name.into(), key: key.into(), message: message.into() }
     }
 
+    /// The same error, marked as belonging to run `i` of a sweep (bad input names the run).
+    pub fn in_run(self, i: usize) -> Self {
+        match self {
+            Error::Input { source_name, key, message } => {
+                Error::Input { source_name: format!("{source_name} [run {i}]"), key, message }
+            }
+            other => other,
+        }
+    }
+
     /// The process exit code for this error.
     pub fn exit_code(&self) -> i32 {
         match self {
@@ -77,3 +87,8 @@ impl Error {
 
 /// Result alias used across the crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// `a: b: c`, leaving out empty parts.
+fn join_nonempty(parts: &[&String]) -> String {
+    parts.iter().filter(|p| !p.trim().is_empty()).map(|p| p.as_str()).collect::<Vec<_>>().join(": ")
+}

@@ -1,31 +1,41 @@
 //! exoleg: a simulator for force control of hydraulic lower-limb exoskeletons.
 //!
 //! The blocks of the control diagram each have a module:
-//! [`reference`] -> [`control`] (ZNN, ARBFNN-FDO-ZNN, ERL-SMC) -> [`hydraulics`] (valve +
-//! cylinder force ODE) -> [`plant`] (bench or leg mechanics) -> [`sensors`] -> back to the
-//! controller, with [`human`] interaction and [`disturbance`]s injected. [`sim`] wires them
-//! in a small co-simulation loop; [`scenario`] loads and validates scenario files;
-//! [`metrics`] defines the figures once; [`output`] writes CSV, JSON and plots.
+//! [`reference`] -> [`control`] (ZNN, ARBFNN-FDO-ZNN, ERL-SMC, the knee PD) -> [`hydraulics`]
+//! (valve + cylinder) -> [`plant`] (bench or leg mechanics; [`leg`] is the URDF leg in Rapier)
+//! -> [`sensors`] -> back to the controller, with [`human`] interaction and [`disturbance`]s
+//! injected. [`scenario`] reads, validates and resolves scenario files; [`sim`] is the
+//! co-simulation loop; [`record`] carries its rows to [`metrics`] (computed online) and
+//! [`output`] (streamed CSV, JSON, plots); [`study`] builds comparisons, sweeps and the
+//! robustness report on top; [`cli`] is the command line.
+//!
+//! Dependencies point one way: scenario -> blocks -> sim -> record -> metrics -> output ->
+//! study -> cli.
 
 pub mod cli;
-pub mod compare;
 pub mod control;
 pub mod disturbance;
 pub mod error;
-pub mod gait_test;
 pub mod human;
 pub mod hydraulics;
-pub mod integrator;
 pub mod leg;
 pub mod metrics;
 pub mod output;
 pub mod plant;
+pub mod record;
 pub mod reference;
 pub mod scenario;
 pub mod sensors;
 pub mod sim;
-pub mod sweep;
+pub mod study;
 
 pub use error::{Error, Result};
-pub use scenario::Scenario;
-pub use sim::{run, Record, RunOutput};
+pub use scenario::{ResolvedScenario, Resources, Scenario};
+pub use sim::{run, run_in_memory, Model, Simulation};
+
+/// Load, validate and resolve a scenario in one call (`None` = the embedded default), with
+/// `--set`-style overrides. Convenient for tests and the library API.
+pub fn load(path: Option<&std::path::Path>, sets: &[&str]) -> Result<ResolvedScenario> {
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    Scenario::load(path, &sets)?.resolve(&Resources::new())
+}

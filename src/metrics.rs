@@ -1,9 +1,13 @@
-//! The metric definitions of MODEL.md section 6, defined once and used by the CLI, the
-//! comparison, sweeps and tests.
+//! The metric definitions of MODEL.md section 6, defined once and computed online from the
+//! rows of a run ([`SummaryBuilder`] is a [`RecordSink`]), so a run of any length needs
+//! constant memory for its figures. Used by the CLI, the studies and the tests.
 
-use crate::scenario::{CriteriaSection, ReferenceKind, Scenario, ScenarioFile};
-use crate::sim::Record;
-use serde::Serialize;
+use crate::error::Result;
+use crate::record::{Layout, RecordSink, Row};
+use serde::{Deserialize, Serialize};
+
+/// Tolerance (s) when comparing a row's time with a window boundary.
+const T_EPS: f64 = 1e-12;
 
 /// Largest absolute value (0 for an empty slice).
 pub fn max_abs(xs: &[f64]) -> f64 {
@@ -12,37 +16,33 @@ pub fn max_abs(xs: &[f64]) -> f64 {
 
 /// Root mean square (0 for an empty slice).
 pub fn rms(xs: &[f64]) -> f64 {
-    if xs.is_empty() {
-        return 0.0;
-    }
-    (xs.iter().map(|x| x * x).sum::<f64>() / xs.len() as f64).sqrt()
+    let mut a = Rms::default();
+    xs.iter().for_each(|x| a.add(*x));
+    a.value()
 }
 
-/// Convergence time: the earliest recorded time after which `|e| <= band` for the rest of
-/// the run. `None` if the last sample is outside the band (never converged).
-pub fn convergence_time(t_s: &[f64], e: &[f64], band: f64) -> Option<f64> {
-    match e.iter().rposition(|x| x.abs() > band) {
-        None => t_s.first().copied(),
-        Some(i) if i + 1 < t_s.len() => Some(t_s[i + 1]),
-        Some(_) => None,
-    }
+/// The convergence band of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub enum Band {
+    /// A fixed band (N): the scenario's, or 1 % of a sine's amplitude.
+    Fixed(f64),
+    /// This fraction of the largest |F_d| of the run (gait runs: 1 %).
+    FractionOfPeakReference(f64),
 }
 
-/// Index of the first sample at or after `settle_s`.
-pub fn settle_index(t_s: &[f64], settle_s: f64) -> usize {
-    t_s.partition_point(|&t| t < settle_s - 1e-12)
-}
-
-/// Arithmetic mean (0 for an empty slice); of a 0/1 flag column, the fraction of time set.
-pub fn mean(xs: &[f64]) -> f64 {
-    if xs.is_empty() {
-        return 0.0;
-    }
-    xs.iter().sum::<f64>() / xs.len() as f64
+/// What the metrics need to know about a run besides its rows.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MetricSettings {
+    /// Convergence band.
+    pub band: Band,
+    /// Settling window excluded from the "after settle" figures (s).
+    pub settle_s: f64,
+    /// Stride time of a gait reference (s), for per-stride figures.
+    pub stride_s: Option<f64>,
 }
 
 /// Figures of one stride of a gait run (errors over the whole stride).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StrideFigures {
     /// Stride number, from 0.
     pub index: usize,
@@ -62,44 +62,9 @@ pub struct StrideFigures {
     pub peak_power_w: f64,
 }
 
-/// Knee error series (deg) from a record with a knee reference.
-pub fn knee_error_deg(r: &Record) -> Option<Vec<f64>> {
-    let q = r.extra_column("knee_angle_deg")?;
-    if r.ref_knee_deg.len() != q.len() {
-        return None;
-    }
-    Some(q.iter().zip(&r.ref_knee_deg).map(|(a, d)| a - d).collect())
-}
-
-/// Mechanical power of the cylinder (W) at each row.
-pub fn cylinder_power_w(r: &Record) -> Vec<f64> {
-    r.cylinder_force_n.iter().zip(&r.piston_velocity_m_s).map(|(f, v)| f * v).collect()
-}
-
-fn strides(r: &Record, knee_err: &[f64]) -> Vec<StrideFigures> {
-    let Some(stride) = r.stride_s else { return Vec::new() };
-    let power = cylinder_power_w(r);
-    let t_end = r.t_s.last().copied().unwrap_or(0.0);
-    let n = ((t_end + 1e-9) / stride).floor() as usize;
-    (0..n)
-        .map(|i| {
-            let (a, b) = (settle_index(&r.t_s, i as f64 * stride), settle_index(&r.t_s, (i + 1) as f64 * stride));
-            StrideFigures {
-                index: i,
-                t_start_s: i as f64 * stride,
-                knee_rms_error_deg: rms(&knee_err[a..b]),
-                knee_max_abs_error_deg: max_abs(&knee_err[a..b]),
-                force_rms_error_n: rms(&r.force_error_n[a..b]),
-                force_max_abs_error_n: max_abs(&r.force_error_n[a..b]),
-                peak_cylinder_force_n: max_abs(&r.cylinder_force_n[a..b]),
-                peak_power_w: max_abs(&power[a..b]),
-            }
-        })
-        .collect()
-}
-
-/// The summary written to `summary.json`.
-#[derive(Debug, Clone, Serialize)]
+/// The figures of a run, as written to `summary.json` (plus the scenario and criteria, which
+/// the output adds).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     /// max |F_L - F_d| over the run (N).
     pub max_abs_force_error_n: f64,
@@ -109,7 +74,7 @@ pub struct Summary {
     pub force_convergence_band_n: f64,
     /// RMS of F_L - F_d over the run (N).
     pub rms_force_error_n: f64,
-    /// Settling window excluded from the two figures below (s).
+    /// Settling window excluded from the figures "after settle" (s).
     pub settle_s: f64,
     /// max |F_L - F_d| after the settling window (N).
     pub max_abs_force_error_after_settle_n: f64,
@@ -143,70 +108,405 @@ pub struct Summary {
     pub wall_time_s: f64,
     /// steps / wall_time_s.
     pub steps_per_second: f64,
-    /// The resolved scenario: feed it back (`exoleg run summary.json`) to reproduce the run.
-    pub scenario: ScenarioFile,
 }
 
-/// Compute the summary of a finished run.
-pub fn summarise(s: &Scenario, r: &Record, wall_time_s: f64) -> Summary {
-    // 1% of the reference amplitude: the sine's, or for a gait run (whose desired force is not
-    // a sine) 1% of the largest |F_d| of the run, unless the scenario sets the band.
-    let band = match (s.file.metrics.convergence_band_n, s.file.reference.kind) {
-        (None, ReferenceKind::Gait) => 0.01 * max_abs(&r.ref_force_n),
-        _ => s.convergence_band_n(),
-    };
-    let settle = s.file.metrics.settle_s;
-    let i0 = settle_index(&r.t_s, settle);
-    let steps = r.t_s.len().saturating_sub(1);
-    let knee_err = knee_error_deg(r);
-    Summary {
-        max_abs_force_error_n: max_abs(&r.force_error_n),
-        force_convergence_time_s: convergence_time(&r.t_s, &r.force_error_n, band),
-        force_convergence_band_n: band,
-        rms_force_error_n: rms(&r.force_error_n),
-        settle_s: settle,
-        max_abs_force_error_after_settle_n: max_abs(&r.force_error_n[i0..]),
-        rms_force_error_after_settle_n: rms(&r.force_error_n[i0..]),
-        max_abs_valve_command: max_abs(&r.valve_command),
-        peak_load_force_n: max_abs(&r.load_force_n),
-        knee_rms_error_deg: knee_err.as_ref().map(|e| rms(&e[i0..])),
-        knee_max_abs_error_deg: knee_err.as_ref().map(|e| max_abs(&e[i0..])),
-        peak_cylinder_force_n: max_abs(&r.cylinder_force_n[i0..]),
-        peak_power_w: max_abs(&cylinder_power_w(r)[i0..]),
-        strides: knee_err.as_ref().map_or(Vec::new(), |e| strides(r, e)),
-        valve_saturation_fraction: mean(&r.valve_saturated),
-        force_limit_fraction: mean(&r.force_limited),
-        loop_closure_max_gap_m: r.extra_column("loop_closure_gap_m").map(max_abs),
-        knee_range_deg: r.extra_column("knee_angle_deg").map(|q| {
-            [q.iter().copied().fold(f64::INFINITY, f64::min), q.iter().copied().fold(f64::NEG_INFINITY, f64::max)]
-        }),
-        steps,
-        wall_time_s,
-        steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
-        scenario: s.file.clone(),
+/// A figure of a [`Summary`] by name, for aggregation over a sweep (typed: a renamed field is
+/// a compile error, not a column that silently disappears).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Metric {
+    /// [`Summary::max_abs_force_error_n`].
+    MaxAbsForceError,
+    /// [`Summary::rms_force_error_n`].
+    RmsForceError,
+    /// [`Summary::max_abs_force_error_after_settle_n`].
+    MaxAbsForceErrorAfterSettle,
+    /// [`Summary::rms_force_error_after_settle_n`].
+    RmsForceErrorAfterSettle,
+    /// [`Summary::knee_rms_error_deg`].
+    KneeRmsError,
+    /// [`Summary::knee_max_abs_error_deg`].
+    KneeMaxAbsError,
+    /// [`Summary::valve_saturation_fraction`].
+    ValveSaturationFraction,
+    /// [`Summary::peak_cylinder_force_n`].
+    PeakCylinderForce,
+}
+
+impl Metric {
+    /// The metrics aggregated over a sweep, in `aggregate.csv` order.
+    pub const AGGREGATED: [Metric; 8] = [
+        Metric::MaxAbsForceError,
+        Metric::RmsForceError,
+        Metric::MaxAbsForceErrorAfterSettle,
+        Metric::RmsForceErrorAfterSettle,
+        Metric::KneeRmsError,
+        Metric::KneeMaxAbsError,
+        Metric::ValveSaturationFraction,
+        Metric::PeakCylinderForce,
+    ];
+
+    /// The `summary.json` key.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Metric::MaxAbsForceError => "max_abs_force_error_n",
+            Metric::RmsForceError => "rms_force_error_n",
+            Metric::MaxAbsForceErrorAfterSettle => "max_abs_force_error_after_settle_n",
+            Metric::RmsForceErrorAfterSettle => "rms_force_error_after_settle_n",
+            Metric::KneeRmsError => "knee_rms_error_deg",
+            Metric::KneeMaxAbsError => "knee_max_abs_error_deg",
+            Metric::ValveSaturationFraction => "valve_saturation_fraction",
+            Metric::PeakCylinderForce => "peak_cylinder_force_n",
+        }
+    }
+
+    /// The value in a summary (None when the run has no such figure).
+    pub fn value(&self, s: &Summary) -> Option<f64> {
+        match self {
+            Metric::MaxAbsForceError => Some(s.max_abs_force_error_n),
+            Metric::RmsForceError => Some(s.rms_force_error_n),
+            Metric::MaxAbsForceErrorAfterSettle => Some(s.max_abs_force_error_after_settle_n),
+            Metric::RmsForceErrorAfterSettle => Some(s.rms_force_error_after_settle_n),
+            Metric::KneeRmsError => s.knee_rms_error_deg,
+            Metric::KneeMaxAbsError => s.knee_max_abs_error_deg,
+            Metric::ValveSaturationFraction => Some(s.valve_saturation_fraction),
+            Metric::PeakCylinderForce => Some(s.peak_cylinder_force_n),
+        }
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// Running RMS: the sum of squares in row order, then `sqrt(sum / n)`.
+#[derive(Debug, Clone, Copy, Default)]
+struct Rms {
+    sum_sq: f64,
+    n: usize,
+}
 
-    #[test]
-    fn convergence_time_definition() {
-        let t = [0.0, 0.1, 0.2, 0.3, 0.4];
-        assert_eq!(convergence_time(&t, &[5.0, 3.0, 0.5, 2.5, 0.1], 1.0), Some(0.4));
-        assert_eq!(convergence_time(&t, &[0.0, 0.1, 0.5, 0.5, 0.1], 1.0), Some(0.0));
-        assert_eq!(convergence_time(&t, &[0.0, 0.1, 0.5, 0.5, 3.0], 1.0), None);
-        assert!((rms(&[3.0, -4.0]) - (12.5f64).sqrt()).abs() < 1e-15);
-        assert_eq!(settle_index(&t, 0.2), 2);
+impl Rms {
+    fn add(&mut self, x: f64) {
+        self.sum_sq += x * x;
+        self.n += 1;
+    }
+    fn value(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            (self.sum_sq / self.n as f64).sqrt()
+        }
+    }
+}
+
+/// Running max |x|.
+#[derive(Debug, Clone, Copy, Default)]
+struct MaxAbs(f64);
+
+impl MaxAbs {
+    fn add(&mut self, x: f64) {
+        self.0 = self.0.max(x.abs());
+    }
+}
+
+/// Running mean (of a 0/1 flag: the fraction of rows set).
+#[derive(Debug, Clone, Copy, Default)]
+struct Mean {
+    sum: f64,
+    n: usize,
+}
+
+impl Mean {
+    fn add(&mut self, x: f64) {
+        self.sum += x;
+        self.n += 1;
+    }
+    fn value(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            self.sum / self.n as f64
+        }
+    }
+}
+
+/// Online convergence time: the time of the row after the last row whose |error| exceeds the
+/// band. With a band known only at the end (a fraction of the run's peak reference), it keeps
+/// the strict suffix maxima of |error| above the band's current lower bound: the last row
+/// beyond the final band is always one of them.
+#[derive(Debug, Clone, Default)]
+struct Convergence {
+    /// (|error|, index, time of the next row) of the strict suffix maxima above `floor`.
+    stair: Vec<(f64, usize, Option<f64>)>,
+    floor: f64,
+    first_t: Option<f64>,
+    n: usize,
+}
+
+impl Convergence {
+    fn add(&mut self, t: f64, abs_err: f64, floor: f64) {
+        if self.first_t.is_none() {
+            self.first_t = Some(t);
+        }
+        if let Some(last) = self.stair.last_mut() {
+            if last.1 + 1 == self.n {
+                last.2 = Some(t);
+            }
+        }
+        self.floor = self.floor.max(floor);
+        while self.stair.last().is_some_and(|s| s.0 <= abs_err) {
+            self.stair.pop();
+        }
+        let f = self.floor;
+        if self.stair.first().is_some_and(|s| s.0 <= f) {
+            self.stair.retain(|s| s.0 > f);
+        }
+        if abs_err > f {
+            self.stair.push((abs_err, self.n, None));
+        }
+        self.n += 1;
+    }
+
+    /// Earliest time after which |error| <= band; None if the last row is outside.
+    fn time(&self, band: f64) -> Option<f64> {
+        match self.stair.iter().rev().find(|s| s.0 > band) {
+            None => self.first_t,
+            Some(s) => s.2,
+        }
+    }
+}
+
+/// Accumulators of one stride.
+#[derive(Debug, Clone, Copy, Default)]
+struct StrideAcc {
+    knee_rms: Rms,
+    knee_max: MaxAbs,
+    force_rms: Rms,
+    force_max: MaxAbs,
+    peak_force: MaxAbs,
+    peak_power: MaxAbs,
+}
+
+/// Computes a [`Summary`] from rows as they arrive (a [`RecordSink`]).
+#[derive(Debug, Clone)]
+pub struct SummaryBuilder {
+    settings: MetricSettings,
+    rows: usize,
+    max_err: MaxAbs,
+    rms_err: Rms,
+    conv: Convergence,
+    peak_ref: MaxAbs,
+    settled_max_err: MaxAbs,
+    settled_rms_err: Rms,
+    max_u: MaxAbs,
+    peak_load: MaxAbs,
+    knee_rms: Rms,
+    knee_max: MaxAbs,
+    has_knee_error: bool,
+    peak_cyl: MaxAbs,
+    peak_power: MaxAbs,
+    saturated: Mean,
+    limited: Mean,
+    gap: Option<MaxAbs>,
+    knee_range: Option<[f64; 2]>,
+    stride: usize,
+    strides: Vec<StrideAcc>,
+    last_t: f64,
+}
+
+impl SummaryBuilder {
+    /// A builder for a run with these settings.
+    pub fn new(settings: MetricSettings) -> Self {
+        Self {
+            settings,
+            rows: 0,
+            max_err: MaxAbs::default(),
+            rms_err: Rms::default(),
+            conv: Convergence::default(),
+            peak_ref: MaxAbs::default(),
+            settled_max_err: MaxAbs::default(),
+            settled_rms_err: Rms::default(),
+            max_u: MaxAbs::default(),
+            peak_load: MaxAbs::default(),
+            knee_rms: Rms::default(),
+            knee_max: MaxAbs::default(),
+            has_knee_error: false,
+            peak_cyl: MaxAbs::default(),
+            peak_power: MaxAbs::default(),
+            saturated: Mean::default(),
+            limited: Mean::default(),
+            gap: None,
+            knee_range: None,
+            stride: 0,
+            strides: Vec::new(),
+            last_t: 0.0,
+        }
+    }
+
+    fn band_floor(&self) -> f64 {
+        match self.settings.band {
+            Band::Fixed(b) => b,
+            Band::FractionOfPeakReference(f) => f * self.peak_ref.0,
+        }
+    }
+
+    fn add_settled(&mut self, r: &Row) {
+        self.settled_max_err.add(r.force_error_n);
+        self.settled_rms_err.add(r.force_error_n);
+        if let Some(e) = r.knee_error_deg() {
+            self.knee_rms.add(e);
+            self.knee_max.add(e);
+            self.has_knee_error = true;
+        }
+        self.peak_cyl.add(r.cylinder_force_n);
+        self.peak_power.add(r.cylinder_power_w());
+    }
+
+    fn add_stride(&mut self, r: &Row) {
+        let (Some(stride_s), Some(ke)) = (self.settings.stride_s, r.knee_error_deg()) else { return };
+        while r.t_s >= (self.stride + 1) as f64 * stride_s - T_EPS {
+            self.stride += 1;
+        }
+        if self.strides.len() <= self.stride {
+            self.strides.resize(self.stride + 1, StrideAcc::default());
+        }
+        let a = &mut self.strides[self.stride];
+        a.knee_rms.add(ke);
+        a.knee_max.add(ke);
+        a.force_rms.add(r.force_error_n);
+        a.force_max.add(r.force_error_n);
+        a.peak_force.add(r.cylinder_force_n);
+        a.peak_power.add(r.cylinder_power_w());
+    }
+
+    /// The summary of the rows so far. `wall_time_s`: the loop's wall-clock time.
+    pub fn finish(&self, wall_time_s: f64) -> Summary {
+        let band = match self.settings.band {
+            Band::Fixed(b) => b,
+            Band::FractionOfPeakReference(f) => f * self.peak_ref.0,
+        };
+        let steps = self.rows.saturating_sub(1);
+        let knee = self.has_knee_error;
+        Summary {
+            max_abs_force_error_n: self.max_err.0,
+            force_convergence_time_s: self.conv.time(band),
+            force_convergence_band_n: band,
+            rms_force_error_n: self.rms_err.value(),
+            settle_s: self.settings.settle_s,
+            max_abs_force_error_after_settle_n: self.settled_max_err.0,
+            rms_force_error_after_settle_n: self.settled_rms_err.value(),
+            max_abs_valve_command: self.max_u.0,
+            peak_load_force_n: self.peak_load.0,
+            knee_rms_error_deg: knee.then(|| self.knee_rms.value()),
+            knee_max_abs_error_deg: knee.then_some(self.knee_max.0),
+            peak_cylinder_force_n: self.peak_cyl.0,
+            peak_power_w: self.peak_power.0,
+            strides: self.stride_figures(),
+            valve_saturation_fraction: self.saturated.value(),
+            force_limit_fraction: self.limited.value(),
+            loop_closure_max_gap_m: self.gap.map(|g| g.0),
+            knee_range_deg: self.knee_range,
+            steps,
+            wall_time_s,
+            steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
+        }
+    }
+
+    /// The complete strides (a partial last stride is left out).
+    fn stride_figures(&self) -> Vec<StrideFigures> {
+        let Some(stride) = self.settings.stride_s else { return Vec::new() };
+        let n = ((self.last_t + 1e-9) / stride).floor() as usize;
+        self.strides
+            .iter()
+            .take(n)
+            .enumerate()
+            .map(|(i, a)| StrideFigures {
+                index: i,
+                t_start_s: i as f64 * stride,
+                knee_rms_error_deg: a.knee_rms.value(),
+                knee_max_abs_error_deg: a.knee_max.0,
+                force_rms_error_n: a.force_rms.value(),
+                force_max_abs_error_n: a.force_max.0,
+                peak_cylinder_force_n: a.peak_force.0,
+                peak_power_w: a.peak_power.0,
+            })
+            .collect()
+    }
+}
+
+impl RecordSink for SummaryBuilder {
+    fn start(&mut self, layout: &Layout) -> Result<()> {
+        if layout.leg {
+            self.gap = Some(MaxAbs::default());
+        }
+        Ok(())
+    }
+
+    fn row(&mut self, r: &Row) -> Result<()> {
+        self.peak_ref.add(r.ref_force_n);
+        self.conv.add(r.t_s, r.force_error_n.abs(), self.band_floor());
+        self.max_err.add(r.force_error_n);
+        self.rms_err.add(r.force_error_n);
+        self.max_u.add(r.valve_command);
+        self.peak_load.add(r.load_force_n);
+        self.saturated.add(if r.valve_saturated { 1.0 } else { 0.0 });
+        self.limited.add(if r.force_limited { 1.0 } else { 0.0 });
+        if r.t_s >= self.settings.settle_s - T_EPS {
+            self.add_settled(r);
+        }
+        self.add_stride(r);
+        if let (Some(g), Some(l)) = (self.gap.as_mut(), r.leg) {
+            g.add(l.loop_closure_gap_m);
+            let q = l.knee_angle_deg;
+            let [lo, hi] = self.knee_range.get_or_insert([f64::INFINITY, f64::NEG_INFINITY]);
+            *lo = lo.min(q);
+            *hi = hi.max(q);
+        }
+        self.last_t = r.t_s;
+        self.rows += 1;
+        Ok(())
+    }
+}
+
+/// `[criteria]`: pass/fail limits checked after a run (absent = not checked). A run whose
+/// criteria fail still writes its outputs and exits with code 4.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Criteria {
+    /// Limit on max |F_L - F_d| after the settling window (N).
+    pub max_force_error_n: Option<f64>,
+    /// Limit on the RMS force error after the settling window (N).
+    pub rms_force_error_n: Option<f64>,
+    /// Limit on the knee RMS error after the settling window (deg).
+    pub knee_rms_error_deg: Option<f64>,
+    /// Limit on max |knee error| after the settling window (deg).
+    pub knee_max_error_deg: Option<f64>,
+    /// Limit on the fraction of samples with the valve command saturated.
+    pub max_valve_saturation_fraction: Option<f64>,
+    /// Limit on the fraction of samples at the supply-pressure force limit.
+    pub max_force_limit_fraction: Option<f64>,
+}
+
+impl Criteria {
+    /// The limits with their keys, in order.
+    pub fn limits(&self) -> [(&'static str, Option<f64>); 6] {
+        [
+            ("max_force_error_n", self.max_force_error_n),
+            ("rms_force_error_n", self.rms_force_error_n),
+            ("knee_rms_error_deg", self.knee_rms_error_deg),
+            ("knee_max_error_deg", self.knee_max_error_deg),
+            ("max_valve_saturation_fraction", self.max_valve_saturation_fraction),
+            ("max_force_limit_fraction", self.max_force_limit_fraction),
+        ]
+    }
+
+    /// True when at least one limit is set.
+    pub fn any(&self) -> bool {
+        self.limits().iter().any(|(_, l)| l.is_some())
     }
 }
 
 /// One checked criterion.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CriterionResult {
     /// The `criteria.*` key.
-    pub name: &'static str,
+    pub name: String,
     /// The limit.
     pub limit: f64,
     /// The measured value (NaN if the run has no such figure).
@@ -216,17 +516,60 @@ pub struct CriterionResult {
 }
 
 /// Check a summary against the scenario's criteria (only those that are set).
-pub fn check_criteria(c: &CriteriaSection, s: &Summary) -> Vec<CriterionResult> {
+pub fn check_criteria(c: &Criteria, s: &Summary) -> Vec<CriterionResult> {
     let nan = f64::NAN;
-    [
-        ("max_force_error_n", c.max_force_error_n, s.max_abs_force_error_after_settle_n),
-        ("rms_force_error_n", c.rms_force_error_n, s.rms_force_error_after_settle_n),
-        ("knee_rms_error_deg", c.knee_rms_error_deg, s.knee_rms_error_deg.unwrap_or(nan)),
-        ("knee_max_error_deg", c.knee_max_error_deg, s.knee_max_abs_error_deg.unwrap_or(nan)),
-        ("max_valve_saturation_fraction", c.max_valve_saturation_fraction, s.valve_saturation_fraction),
-        ("max_force_limit_fraction", c.max_force_limit_fraction, s.force_limit_fraction),
-    ]
-    .into_iter()
-    .filter_map(|(name, limit, value)| limit.map(|limit| CriterionResult { name, limit, value, pass: value <= limit }))
-    .collect()
+    let values = [
+        s.max_abs_force_error_after_settle_n,
+        s.rms_force_error_after_settle_n,
+        s.knee_rms_error_deg.unwrap_or(nan),
+        s.knee_max_abs_error_deg.unwrap_or(nan),
+        s.valve_saturation_fraction,
+        s.force_limit_fraction,
+    ];
+    c.limits()
+        .into_iter()
+        .zip(values)
+        .filter_map(|((name, limit), value)| {
+            limit.map(|limit| CriterionResult { name: name.to_string(), limit, value, pass: value <= limit })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(t: f64, e: f64, r: f64) -> Row {
+        Row { t_s: t, force_error_n: e, ref_force_n: r, ..Default::default() }
+    }
+
+    fn conv(band: Band, errs: &[f64], refs: &[f64]) -> Option<f64> {
+        let mut b = SummaryBuilder::new(MetricSettings { band, settle_s: 0.0, stride_s: None });
+        b.start(&Layout::default()).unwrap();
+        for (i, (e, r)) in errs.iter().zip(refs).enumerate() {
+            b.row(&row(0.1 * i as f64, *e, *r)).unwrap();
+        }
+        b.finish(0.0).force_convergence_time_s
+    }
+
+    #[test]
+    fn convergence_time_definition() {
+        let z = [0.0; 5];
+        assert_eq!(conv(Band::Fixed(1.0), &[5.0, 3.0, 0.5, 2.5, 0.1], &z), Some(0.4));
+        assert_eq!(conv(Band::Fixed(1.0), &[0.0, 0.1, 0.5, 0.5, 0.1], &z), Some(0.0));
+        assert_eq!(conv(Band::Fixed(1.0), &[0.0, 0.1, 0.5, 0.5, 3.0], &z), None);
+        assert!((rms(&[3.0, -4.0]) - (12.5f64).sqrt()).abs() < 1e-15);
+    }
+
+    /// With the band a fraction of the peak reference, known only at the end, the online
+    /// answer equals the one computed from the whole series.
+    #[test]
+    fn convergence_with_a_band_known_only_at_the_end() {
+        let errs = [9.0, 7.0, 8.0, 3.0, 4.0, 2.5, 1.0, 2.6, 0.5, 0.4];
+        let refs = [10.0, 50.0, 100.0, 150.0, 100.0, 0.0, -50.0, -260.0, 0.0, 10.0];
+        // band = 1 % of 260 = 2.6: the last error above it is 3.0 at index 4 (4.0), next t = 0.5
+        assert_eq!(conv(Band::FractionOfPeakReference(0.01), &errs, &refs), Some(0.5));
+        let refs_small = refs.map(|r| r / 2.6); // band 1.0: last violation at index 7 -> t 0.8
+        assert_eq!(conv(Band::FractionOfPeakReference(0.01), &errs, &refs_small), Some(0.8));
+    }
 }

@@ -14,11 +14,17 @@
 mod arbfnn;
 mod erl_smc;
 mod fdo;
+mod knee_pd;
+mod params;
+mod sampled;
 mod znn;
 
 pub use arbfnn::*;
 pub use erl_smc::*;
 pub use fdo::*;
+pub use knee_pd::*;
+pub use params::*;
+pub use sampled::*;
 pub use znn::*;
 
 use crate::hydraulics::Coefficients;

@@ -15,9 +15,11 @@
 //! exactly the paper's `dx2/dt = n1*dx3/dt - n2*xc_ddot - n3*x2 + D_acc`.
 
 mod actuator;
+mod cylinder;
 mod friction;
 mod two_chamber;
 pub use actuator::*;
+pub use cylinder::*;
 pub use friction::*;
 pub use two_chamber::*;
 

@@ -25,4 +25,4 @@ pub use geometry::{
     reduced_acceleration,
 };
 pub use model::{ActuatorSpec, JointKind, JointSpec, LegModel, LinkSpec, LoopClosureSpec, LoopPose};
-pub use sim::{HipCoupling, Leg, LegSolverParams};
+pub use sim::{joint_origin_pose, HipCoupling, Leg, LegSolverParams};

@@ -96,6 +96,11 @@ fn pose3(xyz: [f64; 3], rpy: [f64; 3]) -> Pose {
     Pose::from_parts(DVec3::from(xyz), DQuat::from_euler(EulerRot::ZYX, rpy[2], rpy[1], rpy[0]))
 }
 
+/// The pose of a joint's `<origin>` (child joint frame in the parent link's frame).
+pub fn joint_origin_pose(j: &JointSpec) -> Pose {
+    pose3(j.origin_xyz, j.origin_rpy)
+}
+
 /// URDF joint -> Rapier generic joint. The Rapier joint frame's X axis is aligned with the URDF
 /// axis, so the Rapier coordinate equals the URDF coordinate (same sign).
 fn to_generic(j: &JointSpec) -> GenericJoint {

@@ -2,10 +2,152 @@
 
 use super::write_atomic;
 use crate::error::{Error, Result};
-use crate::sim::Record;
+use crate::record::{Layout, RecordSink, Row};
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::Once;
+
+/// Largest number of buckets a [`PlotBuffer`] keeps (each holds the min and max of every
+/// series over the rows it covers).
+pub const PLOT_BUCKETS: usize = 4096;
+
+/// The series the plots draw.
+const SERIES: usize = 8;
+const REF_FORCE: usize = 0;
+const LOAD_FORCE: usize = 1;
+const FORCE_ERROR: usize = 2;
+const VALVE: usize = 3;
+const REF_KNEE: usize = 4;
+const KNEE: usize = 5;
+const KNEE_ERROR: usize = 6;
+const STANCE: usize = 7;
+
+/// A bounded, decimated copy of a run for its plots: rows are grouped into buckets of `k`
+/// consecutive rows, each keeping the min and max of every plotted series, and `k` doubles
+/// (neighbouring buckets merge) whenever the buffer is full. Peaks survive decimation.
+#[derive(Debug, Clone, Default)]
+pub struct PlotBuffer {
+    rows_per_bucket: usize,
+    t: Vec<f64>,
+    lo: Vec<[f64; SERIES]>,
+    hi: Vec<[f64; SERIES]>,
+    filled: usize,
+    knee: bool,
+    stance: bool,
+}
+
+impl PlotBuffer {
+    /// An empty buffer.
+    pub fn new() -> Self {
+        Self { rows_per_bucket: 1, ..Default::default() }
+    }
+
+    fn values(r: &Row) -> [f64; SERIES] {
+        let nan = f64::NAN;
+        let knee = r.leg.map_or(nan, |l| l.knee_angle_deg);
+        let stance = r.contact.map_or(nan, |c| if c.ground_reaction_vertical_n > 0.0 { 1.0 } else { 0.0 });
+        [
+            r.ref_force_n,
+            r.load_force_n,
+            r.force_error_n,
+            r.valve_command,
+            r.ref_knee_deg.unwrap_or(nan),
+            knee,
+            r.knee_error_deg().unwrap_or(nan),
+            stance,
+        ]
+    }
+
+    /// Halve the buckets (the buffer is full and every bucket complete; the count is even).
+    fn merge_pairs(&mut self) {
+        let n = self.t.len() / 2;
+        for i in 0..n {
+            let (a, b) = (2 * i, 2 * i + 1);
+            self.t[i] = self.t[a];
+            for j in 0..SERIES {
+                self.lo[i][j] = self.lo[a][j].min(self.lo[b][j]);
+                self.hi[i][j] = self.hi[a][j].max(self.hi[b][j]);
+            }
+        }
+        self.t.truncate(n);
+        self.lo.truncate(n);
+        self.hi.truncate(n);
+        self.rows_per_bucket *= 2;
+    }
+
+    /// One series as (t, value) points: each bucket's min, then its max.
+    fn points(&self, j: usize) -> Vec<(f64, f64)> {
+        let mut p = Vec::with_capacity(2 * self.t.len());
+        for i in 0..self.t.len() {
+            let (a, b) = (self.lo[i][j], self.hi[i][j]);
+            if a.is_finite() {
+                p.push((self.t[i], a));
+            }
+            if b.is_finite() && b != a {
+                p.push((self.t[i], b));
+            }
+        }
+        p
+    }
+
+    /// Whether the run has a knee reference (gait plots).
+    pub fn has_knee(&self) -> bool {
+        self.knee
+    }
+
+    /// Intervals (s) in which the foot was on the ground (any row of a bucket in contact).
+    fn stance_intervals(&self) -> Vec<(f64, f64)> {
+        if !self.stance {
+            return Vec::new();
+        }
+        let mut out: Vec<(f64, f64)> = Vec::new();
+        for i in 0..self.t.len() {
+            if self.hi[i][STANCE] == 1.0 {
+                let end = self.t.get(i + 1).copied().unwrap_or(self.t[i]);
+                match out.last_mut() {
+                    Some(last) if last.1 == self.t[i] => last.1 = end,
+                    _ => out.push((self.t[i], end)),
+                }
+            }
+        }
+        out
+    }
+
+    /// Time span (s).
+    fn span(&self) -> (f64, f64) {
+        (self.t.first().copied().unwrap_or(0.0), self.t.last().copied().unwrap_or(1.0))
+    }
+}
+
+impl RecordSink for PlotBuffer {
+    fn start(&mut self, layout: &Layout) -> Result<()> {
+        *self = Self::new();
+        self.knee = layout.knee_reference && layout.leg;
+        self.stance = layout.contact;
+        Ok(())
+    }
+
+    fn row(&mut self, r: &Row) -> Result<()> {
+        let v = Self::values(r);
+        if !self.t.is_empty() && self.filled < self.rows_per_bucket {
+            let (lo, hi) = (self.lo.last_mut().unwrap(), self.hi.last_mut().unwrap());
+            for j in 0..SERIES {
+                lo[j] = lo[j].min(v[j]);
+                hi[j] = hi[j].max(v[j]);
+            }
+            self.filled += 1;
+            return Ok(());
+        }
+        if self.t.len() == PLOT_BUCKETS {
+            self.merge_pairs();
+        }
+        self.t.push(r.t_s);
+        self.lo.push(v);
+        self.hi.push(v);
+        self.filled = 1;
+        Ok(())
+    }
+}
 
 static FONT: Once = Once::new();
 
@@ -16,18 +158,21 @@ fn ensure_font() {
     });
 }
 
+/// One named series of (t, value) points with its colour.
+pub type Series<'a> = (&'a str, Vec<(f64, f64)>, RGBColor);
+
 /// One panel: several named series over a shared time axis.
 pub struct Panel<'a> {
     /// Y-axis label with unit.
     pub y_label: &'a str,
-    /// (legend, values, colour).
-    pub series: Vec<(&'a str, &'a [f64], RGBColor)>,
+    /// (legend, points, colour).
+    pub series: Vec<Series<'a>>,
 }
 
 fn range(panel: &Panel) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for (_, v, _) in &panel.series {
-        for x in v.iter() {
+        for (_, x) in v.iter() {
             lo = lo.min(*x);
             hi = hi.max(*x);
         }
@@ -39,8 +184,9 @@ fn range(panel: &Panel) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// Draw stacked panels sharing the time axis into a PNG at `path` (atomic write).
-pub fn stacked_png(path: &Path, title: &str, t_s: &[f64], panels: &[Panel]) -> Result<()> {
+/// Draw stacked panels sharing the time axis `t_span` into a PNG at `path` (atomic write);
+/// `shade`: time intervals to shade in every panel (stance phases).
+pub fn stacked_png(path: &Path, title: &str, t_span: (f64, f64), panels: &[Panel], shade: &[(f64, f64)]) -> Result<()> {
     ensure_font();
     let (w, h) = (1200u32, 300 * panels.len() as u32 + 60);
     let mut buf = vec![0u8; (w * h * 3) as usize];
@@ -50,7 +196,7 @@ pub fn stacked_png(path: &Path, title: &str, t_s: &[f64], panels: &[Panel]) -> R
         root.fill(&WHITE).map_err(|e| perr(e.to_string()))?;
         let root = root.titled(title, ("sans-serif", 22)).map_err(|e| perr(e.to_string()))?;
         let areas = root.split_evenly((panels.len(), 1));
-        let (t0, t1) = (t_s.first().copied().unwrap_or(0.0), t_s.last().copied().unwrap_or(1.0).max(1e-9));
+        let (t0, t1) = (t_span.0, t_span.1.max(t_span.0 + 1e-9));
         for (area, p) in areas.iter().zip(panels) {
             let (lo, hi) = range(p);
             let mut chart = ChartBuilder::on(area)
@@ -66,10 +212,17 @@ pub fn stacked_png(path: &Path, title: &str, t_s: &[f64], panels: &[Panel]) -> R
                 .label_style(("sans-serif", 14))
                 .draw()
                 .map_err(|e| perr(e.to_string()))?;
+            chart
+                .draw_series(
+                    shade
+                        .iter()
+                        .map(|&(a, b)| Rectangle::new([(a, lo), (b, hi)], RGBColor(200, 200, 200).mix(0.4).filled())),
+                )
+                .map_err(|e| perr(e.to_string()))?;
             for (name, v, c) in &p.series {
                 let c = *c;
                 chart
-                    .draw_series(LineSeries::new(t_s.iter().copied().zip(v.iter().copied()), c.stroke_width(2)))
+                    .draw_series(LineSeries::new(v.iter().copied(), c.stroke_width(2)))
                     .map_err(|e| perr(e.to_string()))?
                     .label(*name)
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
@@ -107,42 +260,43 @@ fn image_png(rgb: &[u8], w: u32, h: u32) -> std::result::Result<Vec<u8>, String>
 }
 
 /// The paper's Figure 5 layout: reference vs load force, tracking error, control input.
-pub fn force_tracking_png(path: &Path, r: &Record, title: &str) -> Result<()> {
+pub fn force_tracking_png(path: &Path, b: &PlotBuffer, title: &str) -> Result<()> {
     stacked_png(
         path,
         title,
-        &r.t_s,
+        b.span(),
         &[
             Panel {
                 y_label: "force (N)",
-                series: vec![("F_d desired", &r.ref_force_n, BLACK), ("F_L load", &r.load_force_n, BLUE)],
+                series: vec![("F_d desired", b.points(REF_FORCE), BLACK), ("F_L load", b.points(LOAD_FORCE), BLUE)],
             },
-            Panel { y_label: "error F_L - F_d (N)", series: vec![("tracking error", &r.force_error_n, RED)] },
-            Panel { y_label: "valve command u", series: vec![("u", &r.valve_command, RGBColor(0, 128, 0))] },
+            Panel { y_label: "error F_L - F_d (N)", series: vec![("tracking error", b.points(FORCE_ERROR), RED)] },
+            Panel { y_label: "valve command u", series: vec![("u", b.points(VALVE), RGBColor(0, 128, 0))] },
         ],
+        &[],
     )
 }
 
-/// Gait runs: desired vs actual knee angle, desired vs load force, and both errors.
-pub fn knee_tracking_png(path: &Path, r: &Record, title: &str) -> Result<()> {
-    let q = r.extra_column("knee_angle_deg").unwrap_or(&[]);
-    let qe: Vec<f64> = crate::metrics::knee_error_deg(r).unwrap_or_default();
+/// Gait runs: desired vs actual knee angle, desired vs load force, and both errors; stance
+/// shaded when the run has ground contact.
+pub fn knee_tracking_png(path: &Path, b: &PlotBuffer, title: &str) -> Result<()> {
     stacked_png(
         path,
         title,
-        &r.t_s,
+        b.span(),
         &[
             Panel {
                 y_label: "knee flexion (deg)",
-                series: vec![("desired", &r.ref_knee_deg, BLACK), ("actual", q, BLUE)],
+                series: vec![("desired", b.points(REF_KNEE), BLACK), ("actual", b.points(KNEE), BLUE)],
             },
-            Panel { y_label: "knee error (deg)", series: vec![("actual - desired", &qe, RED)] },
+            Panel { y_label: "knee error (deg)", series: vec![("actual - desired", b.points(KNEE_ERROR), RED)] },
             Panel {
                 y_label: "cylinder force (N)",
-                series: vec![("F_d desired", &r.ref_force_n, BLACK), ("F_L load", &r.load_force_n, BLUE)],
+                series: vec![("F_d desired", b.points(REF_FORCE), BLACK), ("F_L load", b.points(LOAD_FORCE), BLUE)],
             },
-            Panel { y_label: "force error (N)", series: vec![("F_L - F_d", &r.force_error_n, RED)] },
+            Panel { y_label: "force error (N)", series: vec![("F_L - F_d", b.points(FORCE_ERROR), RED)] },
         ],
+        &b.stance_intervals(),
     )
 }
 

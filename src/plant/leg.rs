@@ -2,10 +2,13 @@
 
 use super::{PistonMotion, PistonPredictor, Plant, PlantInputs};
 use crate::error::{Error, Result};
-use crate::leg::{generalized_inertia_at, knee_forward_acceleration, moment_arm_at, Leg, LegModel, LegSolverParams};
+use crate::leg::{
+    generalized_inertia_at, knee_forward_acceleration, moment_arm_at, Leg, LegError, LegModel, LegSolverParams,
+};
+use crate::record::LegRow;
 use rapier3d_f64::glamx::DVec3;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::sync::Arc;
 
 /// Built-in URDFs, embedded so a run needs no data path: `builtin:exo_leg` (75 kg, 1.75 m
 /// male) and `builtin:exo_leg_small` (60 kg, 1.60 m female, heavier cylinder).
@@ -29,6 +32,9 @@ pub struct LegParams {
     pub initial_knee_deg: Option<f64>,
     /// Rapier solver iterations (TGS substeps) per step. Default 2 (see README, "Leg solver"). 1..=64.
     pub solver_iterations: usize,
+    /// SHA-256 of the URDF's content; filled in by every run (see `summary.json`). When set,
+    /// a run warns if the file has changed since.
+    pub urdf_sha256: Option<String>,
 }
 
 impl Default for LegParams {
@@ -38,21 +44,8 @@ impl Default for LegParams {
             knee_joint: "knee".into(),
             initial_knee_deg: None,
             solver_iterations: LegSolverParams::default().solver_iterations,
+            urdf_sha256: None,
         }
-    }
-}
-
-impl LegParams {
-    /// Load and validate the leg model. `base_dir` is the scenario file's directory.
-    pub fn load_model(&self, source_name: &str, base_dir: Option<&Path>) -> Result<LegModel> {
-        let bad = |msg: String| Error::input(source_name, "leg.urdf", msg);
-        if let Some((_, text)) = BUILTIN_URDFS.iter().find(|(n, _)| *n == self.urdf) {
-            return LegModel::from_urdf_str(text, &self.knee_joint).map_err(|e| bad(format!("{}: {e}", self.urdf)));
-        }
-        let found = crate::scenario::resolve_path(source_name, "leg.urdf", &self.urdf, base_dir)?;
-        let found = &found;
-        LegModel::from_urdf_file(found, &self.knee_joint)
-            .map_err(|e| Error::input(found.display().to_string(), "", e.to_string()))
     }
 }
 
@@ -83,6 +76,31 @@ fn cuff_point_in_shank(
     Ok(local.into())
 }
 
+/// Check a cuff point against the model before anything is built: the cuff link must be the
+/// shank or a link fixed to it, and the point must not lie on the knee axis. Returns the point
+/// in the shank frame (m).
+pub fn cuff_point_from_model(
+    model: &LegModel,
+    link_name: &str,
+    xyz: [f64; 3],
+) -> std::result::Result<[f64; 3], String> {
+    let link = model.link_index(link_name).ok_or_else(|| format!("no link `{link_name}` in the URDF"))?;
+    let shank = model.knee_joint().child;
+    let (mut cur, mut p) = (link, DVec3::from(xyz));
+    while cur != shank {
+        let j = model.joints().iter().find(|j| j.child == cur && j.kind == crate::leg::JointKind::Fixed).ok_or_else(
+            || format!("`{link_name}` is not the shank (`{}`) or a link fixed to it", model.links()[shank].name),
+        )?;
+        p = crate::leg::joint_origin_pose(j) * p;
+        cur = j.parent;
+    }
+    let axis = DVec3::from(model.knee_joint().axis).normalize();
+    if p.cross(axis).length() < 1e-3 {
+        return Err(format!("the cuff point {xyz:?} of `{link_name}` lies on the knee axis: it cannot move the knee"));
+    }
+    Ok(p.into())
+}
+
 /// Initial state of the leg: knee angle and rate, and the hip trajectory sample at t = 0 when
 /// the hip is driven (`None`: thigh fixed).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -95,36 +113,57 @@ pub struct LegStart {
     pub hip: Option<crate::reference::RefSample>,
 }
 
-/// Effective mass at the cylinder, `M(theta) / (dL/dtheta)^2`, tabulated over the knee range.
-struct MassTable {
+/// Effective mass at the cylinder, `M(theta) / (dL/dtheta)^2` (kg), tabulated over the knee
+/// range (401 points) once per leg model and shared by every run that uses it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MassTable {
     lo_rad: f64,
     step_rad: f64,
     kg: Vec<f64>,
 }
 
 impl MassTable {
-    fn new(model: &LegModel) -> Result<Self> {
+    /// Tabulate the effective mass of a leg model over its knee range.
+    pub fn new(model: &LegModel) -> std::result::Result<Self, LegError> {
         let (lo, hi) = model.knee_range_rad();
         let n = 400;
         let step = (hi - lo) / n as f64;
         let kg = (0..=n)
             .map(|i| {
                 let q = lo + i as f64 * step;
-                let m = generalized_inertia_at(model, q).map_err(|e| Error::input("leg", "leg.urdf", e.to_string()))?;
+                let m = generalized_inertia_at(model, q)?;
                 let arm = moment_arm_at(model, q);
                 Ok(m / (arm * arm))
             })
-            .collect::<Result<Vec<f64>>>()?;
+            .collect::<std::result::Result<Vec<f64>, LegError>>()?;
         Ok(Self { lo_rad: lo, step_rad: step, kg })
     }
 
-    /// Linear interpolation, clamped to the table's range.
-    fn at(&self, q: f64) -> f64 {
+    /// Effective mass (kg) at knee angle `q` (rad): linear interpolation, clamped to the
+    /// table's range.
+    pub fn at(&self, q: f64) -> f64 {
         let u = ((q - self.lo_rad) / self.step_rad).clamp(0.0, (self.kg.len() - 1) as f64);
         let i = (u.floor() as usize).min(self.kg.len() - 2);
         let f = u - i as f64;
         self.kg[i] * (1.0 - f) + self.kg[i + 1] * f
     }
+}
+
+/// Everything needed to build the leg plant of a run, resolved and validated once.
+#[derive(Debug, Clone)]
+pub struct LegSetup {
+    /// The leg model (shared).
+    pub model: Arc<LegModel>,
+    /// Its effective-mass table (shared).
+    pub mass: Arc<MassTable>,
+    /// Initial state.
+    pub start: LegStart,
+    /// Rapier solver iterations (TGS substeps) per step.
+    pub solver_iterations: usize,
+    /// Cuff link name and cuff point in its frame (m).
+    pub cuff: (String, [f64; 3]),
+    /// The run starts on its gait trajectory (knee angle and rate from the reference).
+    pub start_on_trajectory: bool,
 }
 
 /// The leg plant: Rapier multibody leg with the hydraulic cylinder in a closed loop.
@@ -139,8 +178,8 @@ impl MassTable {
 /// cylinder length exactly.
 pub struct LegPlant {
     leg: Leg,
-    model: LegModel,
-    mass: MassTable,
+    model: Arc<LegModel>,
+    mass: Arc<MassTable>,
     length0_m: f64,
     length_m: f64,
     /// Piston velocity at the end of the last step, from Rapier's generalized velocity (m/s).
@@ -159,31 +198,12 @@ pub struct LegPlant {
 }
 
 impl LegPlant {
-    /// Build the plant from a loaded model at the scenario's initial knee angle.
-    pub fn new(
-        model: LegModel,
-        p: &LegParams,
-        start: LegStart,
-        dt_s: f64,
-        cuff: (&str, [f64; 3]),
-        source_name: &str,
-    ) -> Result<Self> {
-        let params = LegSolverParams { solver_iterations: p.solver_iterations, ..Default::default() };
-        let (q0, qd0, hip) = (start.knee_rad, start.knee_rate_rad_s, start.hip);
-        let (lo, hi) = model.knee_range_rad();
-        let outside = (lo - q0).max(q0 - hi).max(0.0);
-        if outside > 20f64.to_radians() {
-            return Err(Error::input(
-                source_name,
-                "leg.initial_knee_deg",
-                format!(
-                    "{:.2} deg is outside the URDF knee range [{:.1}, {:.1}] deg by more than 20 deg",
-                    q0.to_degrees(),
-                    lo.to_degrees(),
-                    hi.to_degrees()
-                ),
-            ));
-        }
+    /// Build the plant from a resolved setup, time step `dt_s` (s). `source_name` names the
+    /// scenario in errors.
+    pub fn new(setup: &LegSetup, dt_s: f64, source_name: &str) -> Result<Self> {
+        let params = LegSolverParams { solver_iterations: setup.solver_iterations, ..Default::default() };
+        let model = setup.model.clone();
+        let (q0, qd0, hip) = (setup.start.knee_rad, setup.start.knee_rate_rad_s, setup.start.hip);
         let bad = |e: crate::leg::LegError| Error::input(source_name, "leg.initial_knee_deg", e.to_string());
         let mut leg = match &hip {
             None => Leg::with_params(&model, q0, dt_s, params),
@@ -200,9 +220,9 @@ impl LegPlant {
         let knee = model.knee_joint();
         let knee_axis = DVec3::from(knee.axis).normalize();
         let shank_link = knee.child;
-        let cuff_point = cuff_point_in_shank(&model, &leg, shank_link, cuff)
+        let cuff_point = cuff_point_in_shank(&model, &leg, shank_link, (&setup.cuff.0, setup.cuff.1))
             .map_err(|m| Error::input(source_name, "human.cuff_link", m))?;
-        let mass = MassTable::new(&model)?;
+        let mass = setup.mass.clone();
         // xc_ddot = dL/dq * q_ddot + d(dL/dq)/dq * q_dot^2, with no cylinder force.
         let arm = moment_arm_at(&model, q0);
         let darm = (moment_arm_at(&model, q0 + 1e-5) - moment_arm_at(&model, q0 - 1e-5)) / 2e-5;
@@ -222,7 +242,7 @@ impl LegPlant {
             shank_link,
             knee_axis,
             max_gap_m: 0.0,
-            velocity_lead_s: dt_s / (2.0 * p.solver_iterations as f64),
+            velocity_lead_s: dt_s / (2.0 * setup.solver_iterations as f64),
         })
     }
 
@@ -322,26 +342,15 @@ impl Plant for LegPlant {
         Ok(dl)
     }
 
-    fn extra_names(&self) -> Vec<&'static str> {
-        vec![
-            "knee_angle_deg",
-            "knee_velocity_deg_s",
-            "hip_angle_deg",
-            "cylinder_length_m",
-            "loop_closure_gap_m",
-            "moment_arm_m",
-        ]
-    }
-
-    fn extra_values(&self, out: &mut Vec<f64>) {
+    fn leg_row(&self) -> Option<LegRow> {
         let q = self.leg.knee_angle_rad();
-        out.extend_from_slice(&[
-            q.to_degrees(),
-            self.leg.knee_velocity_rad_s().to_degrees(),
-            if self.leg.has_hip() { self.leg.hip_angle_rad().to_degrees() } else { 0.0 },
-            self.length_m,
-            self.leg.loop_gap_m(),
-            moment_arm_at(&self.model, q),
-        ]);
+        Some(LegRow {
+            knee_angle_deg: q.to_degrees(),
+            knee_velocity_deg_s: self.leg.knee_velocity_rad_s().to_degrees(),
+            hip_angle_deg: if self.leg.has_hip() { self.leg.hip_angle_rad().to_degrees() } else { 0.0 },
+            cylinder_length_m: self.length_m,
+            loop_closure_gap_m: self.leg.loop_gap_m(),
+            moment_arm_m: moment_arm_at(&self.model, q),
+        })
     }
 }

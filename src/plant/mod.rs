@@ -9,6 +9,7 @@ pub use bench::*;
 pub use leg::*;
 
 use crate::error::Result;
+use crate::record::LegRow;
 use serde::{Deserialize, Serialize};
 
 /// Which plant a scenario runs.
@@ -19,6 +20,15 @@ pub enum PlantKind {
     Bench,
     /// The URDF leg in Rapier, driven through the cylinder in its closed loop.
     Leg,
+}
+
+/// The plant of a run, resolved.
+#[derive(Debug, Clone)]
+pub enum PlantSetup {
+    /// Cylinder on the force-loading bench.
+    Bench(BenchParams),
+    /// The URDF leg.
+    Leg(Box<LegSetup>),
 }
 
 /// Piston (cylinder length) motion at one instant. Positive = cylinder lengthening.
@@ -91,10 +101,8 @@ pub trait Plant: Send {
     /// Advance the mechanics from `t_s` to `t_s + dt_s` under a force constant over the step.
     /// Returns the change of cylinder length over the step (m), measured geometrically.
     fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64>;
-    /// Names (with units) of plant-specific recorded columns.
-    fn extra_names(&self) -> Vec<&'static str> {
-        Vec::new()
+    /// The leg columns of the record now (None for plants without a leg).
+    fn leg_row(&self) -> Option<LegRow> {
+        None
     }
-    /// Values of the plant-specific columns now, appended to `out`.
-    fn extra_values(&self, _out: &mut Vec<f64>) {}
 }

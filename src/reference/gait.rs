@@ -184,6 +184,10 @@ pub struct GaitReference {
     pub cycle: GaitCycle,
     /// Stride (gait-cycle) time (s).
     pub stride_s: f64,
+    /// Where the cycle came from (trial name or file path), for messages.
+    pub source: String,
+    /// SHA-256 of the data (hex).
+    pub sha256: String,
 }
 
 impl GaitReference {
@@ -226,7 +230,7 @@ mod tests {
     #[test]
     fn builtin_cycle_repeats_without_a_jump_and_fits_the_data() {
         let (c, stride) = GaitCycle::builtin("wbds01_overground_comfortable", 12).unwrap().unwrap();
-        let g = GaitReference { cycle: c.clone(), stride_s: stride };
+        let g = GaitReference { cycle: c.clone(), stride_s: stride, source: String::new(), sha256: String::new() };
         let (a, b) = (g.knee_at(stride - 1e-9), g.knee_at(stride + 1e-9));
         assert!((a.value - b.value).abs() < 1e-8 && (a.rate - b.rate).abs() < 1e-5);
         // Peak knee flexion 67.6 deg at 74 % (README of the data).

@@ -12,7 +12,7 @@
 //! exactly as in the paper. `F_ff` is tabulated over one stride and fitted with a periodic
 //! Fourier series, so its first and second time derivatives (needed by the force controllers)
 //! are analytic and smooth. The PD part's derivatives are taken as zero (it is updated once
-//! per step or sample).
+//! per step or sample). The PD itself is a controller (`control::KneePd`).
 
 use super::{FourierSeries, GaitReference, RefSample};
 use crate::error::{Error, Result};
@@ -30,23 +30,13 @@ pub struct KneeForceReference {
     /// The knee (and hip) trajectory.
     pub gait: GaitReference,
     ff: FourierSeries,
-    kp_nm_per_rad: f64,
-    kd_nm_s_per_rad: f64,
     drive_hip: bool,
 }
 
 impl KneeForceReference {
     /// Build the feedforward from the leg model. `drive_hip`: include the hip trajectory in
-    /// the inverse dynamics (the thigh follows it). `kp`, `kd`: outer PD gains on the knee angle
-    /// (N m/rad, N m s/rad).
-    pub fn new(
-        gait: GaitReference,
-        model: &LegModel,
-        friction: &FrictionParams,
-        drive_hip: bool,
-        kp_nm_per_rad: f64,
-        kd_nm_s_per_rad: f64,
-    ) -> Result<Self> {
+    /// the inverse dynamics (the thigh follows it).
+    pub fn new(gait: GaitReference, model: &LegModel, friction: &FrictionParams, drive_hip: bool) -> Result<Self> {
         let stride = gait.stride_s;
         let mut t = Vec::with_capacity(FF_SAMPLES);
         let mut f = Vec::with_capacity(FF_SAMPLES);
@@ -63,7 +53,7 @@ impl KneeForceReference {
             f.push(tau / arm + friction.force_n(arm * k.rate));
         }
         let ff = FourierSeries::fit(&t, &f, stride, FF_HARMONICS);
-        Ok(Self { gait, ff, kp_nm_per_rad, kd_nm_s_per_rad, drive_hip })
+        Ok(Self { gait, ff, drive_hip })
     }
 
     /// Whether the hip is driven along the trial's hip angle.
@@ -75,15 +65,5 @@ impl KneeForceReference {
     pub fn feedforward_at(&self, t_s: f64) -> RefSample {
         let (value, rate, accel) = self.ff.eval(t_s);
         RefSample { value, rate, accel }
-    }
-
-    /// The PD force (N) for the measured knee angle and rate at `t_s`.
-    pub fn pd_force_n(&self, model: &LegModel, t_s: f64, knee_rad: f64, knee_rate_rad_s: f64) -> f64 {
-        if self.kp_nm_per_rad == 0.0 && self.kd_nm_s_per_rad == 0.0 {
-            return 0.0;
-        }
-        let d = self.gait.knee_at(t_s);
-        let tau = self.kp_nm_per_rad * (d.value - knee_rad) + self.kd_nm_s_per_rad * (d.rate - knee_rate_rad_s);
-        tau / moment_arm_at(model, knee_rad)
     }
 }

@@ -9,6 +9,7 @@ pub use gait::*;
 pub use knee_force::*;
 
 use serde::Serialize;
+use std::sync::Arc;
 
 /// A reference value and its first two time derivatives at one instant.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
@@ -43,6 +44,55 @@ impl Sine {
             value: self.offset + self.amplitude * s,
             rate: self.amplitude * w * c,
             accel: -self.amplitude * w * w * s,
+        }
+    }
+}
+
+/// The force reference of a run: a sine, or a gait trajectory through the knee cascade's
+/// feedforward (the outer PD part is added by the loop, see `control::KneePd`).
+#[derive(Debug, Clone)]
+pub enum ForceReference {
+    /// Desired force directly.
+    Sine(Sine),
+    /// Knee (and hip) trajectory with the inverse-dynamics feedforward force.
+    Gait(Arc<KneeForceReference>),
+}
+
+impl ForceReference {
+    /// The knee trajectory sample (rad) at `t_s`, for gait references.
+    pub fn knee_at(&self, t_s: f64) -> Option<RefSample> {
+        match self {
+            ForceReference::Gait(k) => Some(k.gait.knee_at(t_s)),
+            ForceReference::Sine(_) => None,
+        }
+    }
+
+    /// The driven hip's trajectory (rad) at `t_s`, if the reference drives the hip.
+    pub fn hip_at(&self, t_s: f64) -> Option<RefSample> {
+        match self {
+            ForceReference::Gait(k) if k.drives_hip() => Some(k.gait.hip_at(t_s)),
+            _ => None,
+        }
+    }
+
+    /// Stride time (s) of a gait reference.
+    pub fn stride_s(&self) -> Option<f64> {
+        match self {
+            ForceReference::Gait(k) => Some(k.gait.stride_s),
+            ForceReference::Sine(_) => None,
+        }
+    }
+
+    /// The desired force at `t_s` with a held outer-loop force `pd_force_n` (N) added (gait
+    /// only; a sine has no outer loop).
+    pub fn force_at(&self, t_s: f64, pd_force_n: f64) -> RefSample {
+        match self {
+            ForceReference::Sine(s) => s.at(t_s),
+            ForceReference::Gait(k) => {
+                let mut r = k.feedforward_at(t_s);
+                r.value += pd_force_n;
+                r
+            }
         }
     }
 }

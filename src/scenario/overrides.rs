@@ -74,3 +74,10 @@ pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
     }
     Ok(())
 }
+
+/// The first line of a serde error, with TOML's type names made plain ("invalid type: string"
+/// for an out-of-range integer is what the deserialiser says when it cannot parse it at all).
+pub(super) fn clean_serde_message(msg: &str) -> String {
+    // The TOML deserialiser appends "in `key`" on a second line; the key is already named.
+    msg.lines().next().unwrap_or_default().to_string()
+}

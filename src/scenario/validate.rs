@@ -64,6 +64,9 @@ fn signal(c: &Check, key: &str, s: &Signal) -> Result<()> {
     Ok(())
 }
 
+/// Most fixed steps a run may have (a 27-hour run at 1 ms; its CSV would be ~60 GB).
+pub const MAX_STEPS: f64 = 1e8;
+
 /// Validate every value; the error names the source, the dotted key and the problem.
 pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     let c = Check { src };
@@ -72,13 +75,26 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
             return Err(c.fail(&key, format!("must be a finite number, got {x}")));
         }
     }
+    sim(&c, f)?;
+    hydraulics(&c, f)?;
+    reference(&c, f)?;
+    controller(&c, f)?;
+    sensors_and_actuator(&c, f)?;
+    leg_human_metrics(&c, f)
+}
+
+/// `[sim]`: positive step, a whole number of steps, at most [`MAX_STEPS`].
+fn sim(c: &Check, f: &ScenarioFile) -> Result<()> {
     c.positive("sim.dt_s", f.sim.dt_s)?;
     c.positive("sim.duration_s", f.sim.duration_s)?;
     let ratio = f.sim.duration_s / f.sim.dt_s;
-    if ratio > 1e9 {
-        return Err(c.fail("sim.duration_s", "more than 1e9 steps: increase sim.dt_s or shorten the run"));
+    if ratio > MAX_STEPS {
+        return Err(c.fail(
+            "sim.duration_s",
+            format!("{ratio:.3e} steps of sim.dt_s, more than the cap of {MAX_STEPS:.0e}: increase sim.dt_s or shorten the run"),
+        ));
     }
-    if ratio < 1.0 - 1e-9 || (ratio - ratio.round()).abs() > 1e-6 * ratio.max(1.0) {
+    if ratio < 1.0 - 1e-9 || (ratio - ratio.round()).abs() > 1e-6 {
         return Err(c.fail(
             "sim.duration_s",
             format!(
@@ -87,7 +103,11 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
             ),
         ));
     }
+    Ok(())
+}
 
+/// `[hydraulics]`, `[friction]`.
+fn hydraulics(c: &Check, f: &ScenarioFile) -> Result<()> {
     let h = &f.hydraulics;
     for (k, v) in [
         ("hydraulics.beta_pa", h.beta_pa),
@@ -103,7 +123,10 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     }
     c.non_negative("hydraulics.k_c", h.k_c)?;
     c.non_negative("hydraulics.leakage", h.leakage)?;
-
+    c.non_negative("hydraulics.return_pressure_pa", h.return_pressure_pa)?;
+    if h.return_pressure_pa >= h.supply_pressure_pa {
+        return Err(c.fail("hydraulics.return_pressure_pa", "must be below hydraulics.supply_pressure_pa"));
+    }
     let fr = &f.friction;
     c.non_negative("friction.coulomb_n", fr.coulomb_n)?;
     c.non_negative("friction.viscous_n_s_per_m", fr.viscous_n_s_per_m)?;
@@ -115,11 +138,16 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
             format!("must be >= friction.coulomb_n ({}), got {}", fr.coulomb_n, fr.static_n),
         ));
     }
+    Ok(())
+}
 
+/// `[bench]`, `[reference]`.
+fn reference(c: &Check, f: &ScenarioFile) -> Result<()> {
     c.non_negative("bench.amplitude_m", f.bench.amplitude_m)?;
     c.positive("bench.frequency_hz", f.bench.frequency_hz)?;
-    c.non_negative("reference.amplitude_n", f.reference.amplitude_n)?;
     let rf = &f.reference;
+    c.non_negative("reference.amplitude_n", rf.amplitude_n)?;
+    c.non_negative("reference.frequency_hz", rf.frequency_hz)?;
     if rf.kind == ReferenceKind::Gait {
         if f.plant.kind != PlantKind::Leg {
             return Err(c.fail("reference.kind", "`gait` drives a knee: it needs plant.kind = \"leg\""));
@@ -138,9 +166,11 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
         return Err(c.fail("reference.harmonics", format!("must be 1..=40, got {}", rf.harmonics)));
     }
     c.non_negative("reference.knee_kp_nm_per_rad", rf.knee_kp_nm_per_rad)?;
-    c.non_negative("reference.knee_kd_nm_s_per_rad", rf.knee_kd_nm_s_per_rad)?;
-    c.non_negative("reference.frequency_hz", f.reference.frequency_hz)?;
+    c.non_negative("reference.knee_kd_nm_s_per_rad", rf.knee_kd_nm_s_per_rad)
+}
 
+/// `[controller]`.
+fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
     let ct = &f.controller;
     c.positive("controller.gamma", ct.gamma)?;
     c.positive("controller.k", ct.k)?;
@@ -184,7 +214,11 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
             c.non_negative(k, v)?;
         }
     }
+    Ok(())
+}
 
+/// `[sensors]`, `[actuator]`, `[disturbance]`.
+fn sensors_and_actuator(c: &Check, f: &ScenarioFile) -> Result<()> {
     c.non_negative("sensors.derivative_cutoff_hz", f.sensors.derivative_cutoff_hz)?;
     for (key, ch) in f.sensors.channels() {
         c.non_negative(&format!("{key}.noise_std"), ch.noise_std)?;
@@ -198,7 +232,7 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     if f.sensors.delay_samples > 100_000 {
         return Err(c.fail("sensors.delay_samples", format!("at most 100000 samples, got {}", f.sensors.delay_samples)));
     }
-    if f.sensors.has_effects() && ct.sample_period_s == 0.0 {
+    if f.sensors.has_effects() && f.controller.sample_period_s == 0.0 {
         return Err(c.fail(
             "sensors",
             "noise, quantisation, delay and filtering act on sampled signals: set controller.sample_period_s > 0",
@@ -209,10 +243,13 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     if f.actuator.mode != ActuatorMode::Hydraulic && f.plant.kind == PlantKind::Bench {
         return Err(c.fail("actuator.mode", "`force` and `free` drive a leg; the bench has no mechanics to drive"));
     }
-    signal(&c, "disturbance.force_rate", &f.disturbance.force_rate)?;
-    signal(&c, "disturbance.force_accel", &f.disturbance.force_accel)?;
-    signal(&c, "disturbance.spool", &f.disturbance.spool)?;
+    signal(c, "disturbance.force_rate", &f.disturbance.force_rate)?;
+    signal(c, "disturbance.force_accel", &f.disturbance.force_accel)?;
+    signal(c, "disturbance.spool", &f.disturbance.spool)
+}
 
+/// `[leg]`, `[human]`, `[metrics]`, `[criteria]`.
+fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
     if !(1..=64).contains(&f.leg.solver_iterations) {
         return Err(c.fail("leg.solver_iterations", format!("must be 1..=64, got {}", f.leg.solver_iterations)));
     }
@@ -232,25 +269,13 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
         ));
     }
     let cr = &f.criteria;
-    for (k, v) in [
-        ("criteria.max_force_error_n", cr.max_force_error_n),
-        ("criteria.rms_force_error_n", cr.rms_force_error_n),
-        ("criteria.knee_rms_error_deg", cr.knee_rms_error_deg),
-        ("criteria.knee_max_error_deg", cr.knee_max_error_deg),
-        ("criteria.max_valve_saturation_fraction", cr.max_valve_saturation_fraction),
-        ("criteria.max_force_limit_fraction", cr.max_force_limit_fraction),
-    ] {
+    for (k, v) in cr.limits() {
         if let Some(v) = v {
-            c.non_negative(k, v)?;
+            c.non_negative(&format!("criteria.{k}"), v)?;
         }
     }
-    if (cr.knee_rms_error_deg.is_some() || cr.knee_max_error_deg.is_some()) && rf.kind != ReferenceKind::Gait {
+    if (cr.knee_rms_error_deg.is_some() || cr.knee_max_error_deg.is_some()) && f.reference.kind != ReferenceKind::Gait {
         return Err(c.fail("criteria", "knee criteria need a knee reference (reference.kind = \"gait\")"));
-    }
-    let h = &f.hydraulics;
-    c.non_negative("hydraulics.return_pressure_pa", h.return_pressure_pa)?;
-    if h.return_pressure_pa >= h.supply_pressure_pa {
-        return Err(c.fail("hydraulics.return_pressure_pa", "must be below hydraulics.supply_pressure_pa"));
     }
     Ok(())
 }

@@ -2,8 +2,7 @@
 //! `exoleg::leg::geometry`), cross-checked against the independent reference of
 //! `common::leg_reference` (URDF numbers, virtual power), and the Rapier leg driven through its
 //! kinematic hip joint compared with the reference trajectory.
-mod common;
-use common::leg_reference::*;
+use crate::common::leg_reference::*;
 
 use exoleg::leg::*;
 

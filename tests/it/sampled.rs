@@ -1,7 +1,6 @@
 //! Sampled (zero-order-hold) control versus continuous evaluation.
 
-mod common;
-use common::run;
+use crate::common::{self, run, run_scenario};
 
 #[test]
 fn sampling_degrades_tracking_and_faster_sampling_degrades_it_less() {
@@ -35,7 +34,7 @@ fn arbfnn_fdo_znn_at_1khz_with_differenced_load_cell_is_unstable() {
     // numbers overflow.
     for extra in ["actuator.pressure_limit=true", "actuator.pressure_limit=false"] {
         let s = common::scenario(&["controller.sample_period_s=0.001", extra]);
-        match exoleg::run(&s) {
+        match run_scenario(&s) {
             Err(exoleg::Error::Diverged { time_s, .. }) => assert!(time_s < 0.5, "{extra}: late divergence {time_s}"),
             Ok(out) => panic!("{extra}: expected instability, got max error {}", out.summary.max_abs_force_error_n),
             Err(e) => panic!("{e}"),

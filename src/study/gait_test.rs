@@ -2,20 +2,21 @@
 //! own checks in Rust (see `examples/gait_test.rs`):
 //!
 //! ```no_run
-//! use exoleg::gait_test::GaitTest;
+//! use exoleg::study::gait_test::GaitTest;
 //! let report = GaitTest::comfortable().set("controller.gamma=300").strides(4).run().unwrap();
 //! assert!(report.knee_rms_error_deg() < 1.0);
 //! ```
 
 use crate::error::Result;
 use crate::metrics::Summary;
-use crate::scenario::Scenario;
-use crate::sim::{self, Record};
+use crate::record::MemoryRecord;
+use crate::scenario::{Resources, Scenario};
+use crate::sim;
 
 /// The shipped comfortable-walking scenario (`assets/scenarios/gait_walk.toml`).
-pub const GAIT_WALK_TOML: &str = include_str!("../assets/scenarios/gait_walk.toml");
+pub const GAIT_WALK_TOML: &str = include_str!("../../assets/scenarios/gait_walk.toml");
 /// The shipped fast-walking scenario (`assets/scenarios/gait_walk_fast.toml`).
-pub const GAIT_WALK_FAST_TOML: &str = include_str!("../assets/scenarios/gait_walk_fast.toml");
+pub const GAIT_WALK_FAST_TOML: &str = include_str!("../../assets/scenarios/gait_walk_fast.toml");
 
 /// A gait run to be configured and executed.
 #[derive(Debug, Clone)]
@@ -60,7 +61,7 @@ impl GaitTest {
         match self.strides {
             None => Ok(s),
             Some(n) => {
-                let stride = s.file.reference.gait(&s.source_name, s.base_dir.as_deref())?.stride_s;
+                let stride = s.resolve(&Resources::new())?.model.reference.stride_s().unwrap_or(1.0);
                 s.with_sets(&[
                     format!("sim.duration_s={:?}", n as f64 * stride),
                     format!("metrics.settle_s={stride:?}"),
@@ -71,8 +72,9 @@ impl GaitTest {
 
     /// Run it.
     pub fn run(&self) -> Result<GaitReport> {
-        let out = sim::run(&self.scenario()?)?;
-        Ok(GaitReport { summary: out.summary, record: out.record })
+        let sc = self.scenario()?.resolve(&Resources::new())?;
+        let (summary, record) = sim::run_in_memory(&sc.model)?;
+        Ok(GaitReport { summary, record })
     }
 }
 
@@ -82,7 +84,7 @@ pub struct GaitReport {
     /// All summary figures (see `summary.json`).
     pub summary: Summary,
     /// The time series.
-    pub record: Record,
+    pub record: MemoryRecord,
 }
 
 impl GaitReport {

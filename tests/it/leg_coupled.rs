@@ -2,13 +2,11 @@
 //! independent reduced closed-chain model of `common::leg_reference` (built from the URDF's
 //! own numbers, not from Rapier).
 
-mod common;
-use common::leg_reference::{manifest, mean_period, RefModel};
-use common::leg_run;
+use crate::common::leg_reference::{manifest, mean_period, RefModel};
+use crate::common::{self, knee_deg, leg_run, Out};
 
-fn knee_samples(out: &exoleg::RunOutput) -> Vec<(f64, f64)> {
-    let q = out.record.extra_column("knee_angle_deg").unwrap();
-    out.record.t_s.iter().zip(q).map(|(t, q)| (*t, q.to_radians())).collect()
+fn knee_samples(out: &Out) -> Vec<(f64, f64)> {
+    out.record.rows.iter().map(|r| (r.t_s, r.leg.unwrap().knee_angle_deg.to_radians())).collect()
 }
 
 fn check_free_and_hold(builtin: &str, file: &str) {
@@ -37,7 +35,7 @@ fn check_free_and_hold(builtin: &str, file: &str) {
             &format!("actuator.force_n={f:?}"),
             &format!("leg.initial_knee_deg={deg:?}"),
         ]);
-        let q = out.record.extra_column("knee_angle_deg").unwrap();
+        let q = knee_deg(&out);
         let dev = q.iter().fold(0.0f64, |m, x| m.max((x - deg).abs()));
         assert!(dev < 0.05, "{builtin} at {deg} deg with {f} N: knee moved {dev} deg");
         // ... and 5% less force does not (the check can fail).
@@ -47,7 +45,7 @@ fn check_free_and_hold(builtin: &str, file: &str) {
             &format!("actuator.force_n={:?}", 0.95 * f),
             &format!("leg.initial_knee_deg={deg:?}"),
         ]);
-        let q = out.record.extra_column("knee_angle_deg").unwrap();
+        let q = knee_deg(&out);
         assert!(q.iter().any(|x| (x - deg).abs() > 0.05) || f.abs() < 2.0, "{builtin} {deg}: 95% force also held");
     }
 }
@@ -71,7 +69,7 @@ fn urdf_from_a_file_path_works() {
 #[test]
 fn paper_cases_on_the_leg_znn_beats_erl_smc_and_the_excess_is_explained() {
     let base = common::leg_scenario(&[]);
-    let res = exoleg::compare::run_cases(&base, &[]).unwrap();
+    let res = exoleg::study::compare::run_cases(&base, &[]).unwrap();
     // Released from rest at 30 deg, the piston starts with acceleration a0 = dL/dq * q_ddot.
     // Rapier's n symplectic substeps move it by a0*dt^2*(n+1)/(2n) in the first step, as if it
     // had the velocity a0*dt/(2n) at t = 0; the oil spring turns that into an initial force
@@ -107,11 +105,10 @@ fn cuff_interaction_moves_the_knee() {
     let base = ["sim.duration_s=0.5", "controller.kind=\"znn\""];
     let off = leg_run(&base);
     let cuff = leg_run(&[&base[..], &["human.mode=\"cuff\"", "human.k_p=2.0", "human.k_d=0.01"]].concat());
-    let w = &cuff.record.interaction_force;
+    let w = cuff.record.series(|r| r.interaction_force);
     assert!(w.iter().any(|x| x.abs() > 1.0), "interaction force stays tiny");
-    let q0 = off.record.extra_column("knee_angle_deg").unwrap();
-    let q1 = cuff.record.extra_column("knee_angle_deg").unwrap();
-    let d = q0.iter().zip(q1).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    let (q0, q1) = (knee_deg(&off), knee_deg(&cuff));
+    let d = q0.iter().zip(&q1).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
     assert!(d > 0.01, "cuff force did not change the knee trajectory ({d} deg)");
     assert!(cuff.summary.max_abs_force_error_n.is_finite());
 }
@@ -120,8 +117,7 @@ fn cuff_interaction_moves_the_knee() {
 fn leg_runs_are_bit_identical() {
     let a = leg_run(&["sim.duration_s=0.3"]);
     let b = leg_run(&["sim.duration_s=0.3"]);
-    assert_eq!(a.record.load_force_n, b.record.load_force_n);
-    assert_eq!(a.record.extra, b.record.extra);
+    assert_eq!(a.record.rows, b.record.rows);
 }
 
 #[test]
@@ -130,10 +126,11 @@ fn cuff_link_must_move_with_the_shank() {
     // The foot is fixed to the shank: a cuff there (40 cm below the knee in the shank frame).
     let foot = leg_run(&[&base[..], &["human.cuff_link=\"foot\"", "human.cuff_xyz=[0.0, 0.0, 0.0]"]].concat());
     let shank = leg_run(&[&base[..], &["human.cuff_link=\"shank\"", "human.cuff_xyz=[0.0, 0.0, -0.2]"]].concat());
-    let (qf, qs) =
-        (foot.record.extra_column("knee_angle_deg").unwrap(), shank.record.extra_column("knee_angle_deg").unwrap());
-    assert!(qf.iter().zip(qs).any(|(a, b)| (a - b).abs() > 1e-6), "a longer lever must act differently");
-    let e = exoleg::run(&common::leg_scenario(&[&base[..], &["human.cuff_link=\"thigh\""]].concat())).unwrap_err();
+    let (qf, qs) = (knee_deg(&foot), knee_deg(&shank));
+    assert!(qf.iter().zip(&qs).any(|(a, b)| (a - b).abs() > 1e-6), "a longer lever must act differently");
+    let e = common::run_scenario(&common::leg_scenario(&[&base[..], &["human.cuff_link=\"thigh\""]].concat()))
+        .err()
+        .unwrap();
     assert_eq!(e.exit_code(), 2);
     assert!(e.to_string().contains("human.cuff_link") && e.to_string().contains("fixed to it"), "{e}");
 }

@@ -1,8 +1,7 @@
 //! The observer and the RBF network earn their place (issue acceptance), and the observer's
 //! documented stability limit.
 
-mod common;
-use common::{mean, run, scenario};
+use crate::common::{mean, run, run_scenario, scenario};
 
 const STEP_5000: &str = "disturbance.force_accel=[{kind=\"step\",amplitude=5000.0,time_s=0.0}]";
 const BETA_10PCT: &str = "controller.nominal.beta_pa=1.6687e9"; // 1.1 x the plant's 1.517e9
@@ -21,16 +20,16 @@ fn fdo_and_rbf_cut_steady_state_error_and_estimate_the_lumped_disturbance() {
 
     // The estimate g_hat + D_hat converges to the true lumped disturbance on dx2/dt.
     let r = &full.record;
-    let i0 = r.t_s.len() / 2;
-    let est = mean(&r.disturbance_estimate_n_per_s2[i0..]);
-    let truth = mean(&r.lumped_disturbance_n_per_s2[i0..]);
+    let i0 = r.rows.len() / 2;
+    let est = mean(&r.series(|r| r.disturbance_estimate_n_per_s2)[i0..]);
+    let truth = mean(&r.series(|r| r.lumped_disturbance_n_per_s2)[i0..]);
     assert!(truth > 5000.0, "lumped disturbance includes the step: {truth}");
     assert!((est - truth).abs() < 0.02 * truth, "estimate {est} vs true {truth}");
     // The RBF weights settle and g_hat moves toward the disturbance, not away from it.
-    let g_end = *r.rbf_output_n_per_s2.last().unwrap();
+    let g = r.series(|r| r.rbf_output_n_per_s2);
+    let g_end = *g.last().unwrap();
     assert!(g_end > 0.0, "g_hat {g_end} should share the sign of D");
-    let n = r.t_s.len();
-    let g_a = r.rbf_output_n_per_s2[n - 200];
+    let g_a = g[g.len() - 200];
     assert!((g_end - g_a).abs() < 0.05 * truth, "g_hat still moving: {g_a} -> {g_end}");
 }
 
@@ -45,7 +44,7 @@ fn observer_limit_at_one_millisecond() {
             &format!("disturbance.force_accel=[{{kind=\"step\",amplitude={d:?},time_s=0.0}}]"),
             &format!("sim.dt_s={dt:?}"),
         ]);
-        exoleg::run(&s)
+        run_scenario(&s)
     };
     assert!(at(30_000.0, 1e-3).is_ok());
     match at(50_000.0, 1e-3) {

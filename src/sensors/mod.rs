@@ -12,6 +12,9 @@
 //! differences. x2 is never rebuilt from the nominal model (that would hide exactly the
 //! disturbances the observer exists to see).
 
+mod hold;
+pub use hold::*;
+
 use crate::control::Measurement;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

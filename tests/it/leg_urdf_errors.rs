@@ -1,6 +1,5 @@
 //! Test 4: bad URDF inputs give the right error variant.
-mod common;
-use common::leg_reference::manifest;
+use crate::common::leg_reference::manifest;
 use exoleg::leg::*;
 
 fn good() -> String {

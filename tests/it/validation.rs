@@ -1,8 +1,7 @@
 //! Controller validation before hardware: sensor effects, actuator limits, two-chamber plant,
 //! sweeps, robustness and pass/fail criteria.
 
-mod common;
-use common::run;
+use crate::common::run;
 use std::path::Path;
 use std::process::Command;
 

@@ -1,8 +1,8 @@
 //! The n2*xc_dot path of the force ODE, exercised by the bench's prescribed piston motion.
 
-mod common;
+use crate::common;
 use exoleg::hydraulics::{ForceChannelInput, ForceChannelState, HydraulicParams};
-use exoleg::integrator::Integrator;
+use exoleg::sim::Integrator;
 
 /// Open loop (u = 0, spool centred), piston moving x_c = a sin(wt): the force obeys
 /// dF/dt = -n2 a w cos(wt) - n3 F, whose exact solution is checked at t = 1 s.

@@ -1,8 +1,7 @@
 //! Test 2 (and 3 for the second URDF): statics. The holding force F = (dV/dtheta)/(dL/dtheta)
 //! from the independent reference equals (a) the library's pure-geometry answer and (b) the force
 //! that gives zero knee acceleration in the Rapier simulation; applying it holds the knee still.
-mod common;
-use common::leg_reference::*;
+use crate::common::leg_reference::*;
 
 use exoleg::leg::*;
 

@@ -1,7 +1,8 @@
 //! The paper's Tables 3 and 4 on the bench plant: continuous control, ode3 at 1 ms, the
 //! paper's disturbances (the embedded default scenario).
 
-use exoleg::compare::{run_cases, PAPER_CASES};
+use crate::common::run_scenario;
+use exoleg::study::compare::{run_cases, PAPER_CASES};
 use exoleg::Scenario;
 
 #[test]
@@ -52,14 +53,14 @@ fn plain_znn_without_disturbance_follows_the_critically_damped_error_law() {
             ],
         )
         .unwrap();
-        let out = exoleg::run(&s).unwrap();
+        let out = run_scenario(&s).unwrap();
         let w = std::f64::consts::TAU * f_hz;
         // Exact error of the tracking law for a sine reference: the particular solution is 0,
         // so e(t) = -A*w*t*exp(-gamma*t).
         let mut worst: f64 = 0.0;
-        for (t, e) in out.record.t_s.iter().zip(&out.record.force_error_n) {
-            let exact = -200.0 * w * t * (-gamma * t).exp();
-            worst = worst.max((e - exact).abs());
+        for r in &out.record.rows {
+            let exact = -200.0 * w * r.t_s * (-gamma * r.t_s).exp();
+            worst = worst.max((r.force_error_n - exact).abs());
         }
         assert!(worst < 1e-3, "f={f_hz} gamma={gamma}: worst deviation {worst} N");
     }

@@ -1,6 +1,5 @@
 //! Test 1 (and 3 for the second URDF): passive release from 30 deg, zero actuator force.
-mod common;
-use common::leg_reference::*;
+use crate::common::leg_reference::*;
 
 use exoleg::leg::*;
 

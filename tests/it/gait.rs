@@ -1,23 +1,17 @@
 //! Gait-trajectory runs: joint-angle and force tracking tested together (shipped scenarios).
 
-use exoleg::{RunOutput, Scenario};
+use crate::common::{run_scenario, shipped as scenario, Out};
 use std::path::Path;
 
-fn scenario(file: &str, sets: &[&str]) -> Scenario {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios").join(file);
-    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-    Scenario::load(Some(&p), &sets).unwrap()
-}
-
-fn run(file: &str, sets: &[&str]) -> RunOutput {
-    exoleg::run(&scenario(file, sets)).unwrap()
+fn run(file: &str, sets: &[&str]) -> Out {
+    run_scenario(&scenario(file, sets)).unwrap()
 }
 
 #[test]
 fn comfortable_walking_tracks_knee_and_force_without_saturation() {
     let s = scenario("gait_walk.toml", &[]);
     assert_eq!(s.file.metrics.settle_s, 1.10, "settle window = one stride");
-    let out = exoleg::run(&s).unwrap().summary;
+    let out = run_scenario(&s).unwrap().summary;
     let (rms, max) = (out.knee_rms_error_deg.unwrap(), out.knee_max_abs_error_deg.unwrap());
     println!(
         "comfortable: knee RMS {rms:.4} deg, max {max:.4} deg; force RMS {:.3} N, max {:.3} N; peak force {:.1} N, power {:.1} W",

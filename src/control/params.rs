@@ -1,0 +1,93 @@
+//! The controller's scenario section: kind, gains, sampling, and the model it assumes.
+
+use super::{ControllerKind, ObserverParams, RbfParams};
+use crate::hydraulics::HydraulicParams;
+use serde::{Deserialize, Serialize};
+
+/// `[controller.nominal]`: the hydraulic parameters the controller assumes. Each key that
+/// is absent takes the plant's value from `[hydraulics]` (a perfect model).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NominalParams {
+    /// Assumed bulk modulus (Pa).
+    pub beta_pa: Option<f64>,
+    /// Assumed volume V0 (m^3).
+    pub v0_m3: Option<f64>,
+    /// Assumed flow gain K_q (m^2/s).
+    pub k_q: Option<f64>,
+    /// Assumed flow-pressure coefficient K_c (m^3/(s Pa)).
+    pub k_c: Option<f64>,
+    /// Assumed leakage 2*C_in + C_ex (m^3/(s Pa)).
+    pub leakage: Option<f64>,
+    /// Assumed spool time constant (s).
+    pub tau_s: Option<f64>,
+    /// Assumed valve gain.
+    pub k_s: Option<f64>,
+    /// Assumed area A1 (m^2).
+    pub a1_m2: Option<f64>,
+    /// Assumed area A2 (m^2).
+    pub a2_m2: Option<f64>,
+}
+
+impl NominalParams {
+    /// The controller's parameter set: the plant's, with the given assumptions replacing it.
+    pub fn apply(&self, plant: &HydraulicParams) -> HydraulicParams {
+        let mut p = plant.clone();
+        let pick = |o: Option<f64>, v: &mut f64| {
+            if let Some(x) = o {
+                *v = x
+            }
+        };
+        pick(self.beta_pa, &mut p.beta_pa);
+        pick(self.v0_m3, &mut p.v0_m3);
+        pick(self.k_q, &mut p.k_q);
+        pick(self.k_c, &mut p.k_c);
+        pick(self.leakage, &mut p.leakage);
+        pick(self.tau_s, &mut p.tau_s);
+        pick(self.k_s, &mut p.k_s);
+        pick(self.a1_m2, &mut p.a1_m2);
+        pick(self.a2_m2, &mut p.a2_m2);
+        p
+    }
+}
+
+/// `[controller]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControllerParams {
+    /// `znn`, `arbfnn_fdo_znn` (default) or `erl_smc`.
+    pub kind: ControllerKind,
+    /// ZNN design parameter gamma (1/s). Default 100. > 0.
+    pub gamma: f64,
+    /// ERL-SMC reaching gain k (1/s). Default 100. > 0.
+    pub k: f64,
+    /// ERL-SMC surface slope delta (1/s). Default 15. > 0.
+    pub delta: f64,
+    /// ERL-SMC switching gain zeta (N/s^2). Default 10. >= 0.
+    pub zeta: f64,
+    /// Controller sample period (s); 0 = continuous (evaluated at every solver stage).
+    /// Otherwise a whole multiple of `sim.dt_s`. Default 0.
+    pub sample_period_s: f64,
+    /// RBF network.
+    pub rbf: RbfParams,
+    /// Fixed-time disturbance observer.
+    pub observer: ObserverParams,
+    /// The model the controller assumes.
+    pub nominal: NominalParams,
+}
+
+impl Default for ControllerParams {
+    fn default() -> Self {
+        Self {
+            kind: ControllerKind::ArbfnnFdoZnn,
+            gamma: 100.0,
+            k: 100.0,
+            delta: 15.0,
+            zeta: 10.0,
+            sample_period_s: 0.0,
+            rbf: RbfParams::default(),
+            observer: ObserverParams::default(),
+            nominal: NominalParams::default(),
+        }
+    }
+}

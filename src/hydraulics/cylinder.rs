@@ -1,0 +1,229 @@
+//! The cylinder as one block of the loop: the linear force ODE (paper Eq. 1) or the two-chamber
+//! plant, with its hard stops (spool travel, supply-pressure force bounds or chamber-pressure
+//! limits), the stroke correction the co-simulation applies after the mechanics moved, and its
+//! limit test. The loop never branches on the model kind: it asks the cylinder.
+
+use super::{Coefficients, ForceChannelInput, ForceChannelState, HydraulicModel, HydraulicParams, TwoChamber};
+
+/// The hydraulic states the loop integrates.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct HydraulicState {
+    /// Load force F_L (N).
+    pub force_n: f64,
+    /// Spool position x_v (m).
+    pub spool_m: f64,
+    /// Integrated force-acceleration disturbance r (N/s), see [`super`].
+    pub accel_dist_n_per_s: f64,
+    /// Mean chamber pressure (Pa), two-chamber model only (0 for the linear one).
+    pub mean_pressure_pa: f64,
+}
+
+impl HydraulicState {
+    /// The force-channel view of the state (F_L, x_v, r).
+    pub fn channel(&self) -> ForceChannelState {
+        ForceChannelState { force_n: self.force_n, spool_m: self.spool_m, accel_dist_n_per_s: self.accel_dist_n_per_s }
+    }
+}
+
+/// Piston position (m) and velocity (m/s) as the cylinder sees them at one stage.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PistonKinematics {
+    /// Position from the start (m).
+    pub position_m: f64,
+    /// Velocity (m/s).
+    pub velocity_m_s: f64,
+}
+
+/// Which plant integrates the force channel.
+#[derive(Debug, Clone, PartialEq)]
+enum Chambers {
+    /// dF_L/dt from the linear ODE; F_L clamped to the force bounds.
+    Linear,
+    /// Two chambers; the pressures hold themselves in [p_r, p_s].
+    Two(TwoChamber),
+}
+
+/// The valve-controlled cylinder: coefficients, model and hard stops.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cylinder {
+    /// The plant's force-ODE coefficients n1..n4, tau, k_s.
+    pub coeffs: Coefficients,
+    chambers: Chambers,
+    /// Load-force bounds (N): [-p_s*A2, p_s*A1], or infinite without `actuator.pressure_limit`.
+    pub force_bounds_n: (f64, f64),
+    /// Spool travel limit (m), 0 = none.
+    pub spool_limit_m: f64,
+}
+
+impl Cylinder {
+    /// The cylinder of a scenario. `pressure_limit`: clamp F_L to what the supply gives
+    /// (linear model); `spool_limit_m`: spool travel stop, 0 = none.
+    pub fn new(h: &HydraulicParams, pressure_limit: bool, spool_limit_m: f64) -> Self {
+        let force_bounds_n = if pressure_limit {
+            (-h.max_pull_force_n(), h.max_push_force_n())
+        } else {
+            (f64::NEG_INFINITY, f64::INFINITY)
+        };
+        let chambers = match h.model {
+            HydraulicModel::Linear => Chambers::Linear,
+            HydraulicModel::TwoChamber => Chambers::Two(TwoChamber::new(h)),
+        };
+        Self { coeffs: h.coefficients(), chambers, force_bounds_n, spool_limit_m }
+    }
+
+    /// True for the two-chamber plant.
+    pub fn is_two_chamber(&self) -> bool {
+        matches!(self.chambers, Chambers::Two(_))
+    }
+
+    /// The state at t = 0 with F_L = 0: zero (linear), or the two-chamber equilibrium
+    /// (pressures and the balancing spool opening).
+    pub fn initial_state(&self) -> HydraulicState {
+        match &self.chambers {
+            Chambers::Linear => HydraulicState::default(),
+            Chambers::Two(tc) => {
+                let (p1, p2, xv) = tc.operating_point();
+                let (force_n, mean_pressure_pa) = tc.force_and_mean(p1, p2);
+                HydraulicState { force_n, spool_m: xv, accel_dist_n_per_s: 0.0, mean_pressure_pa }
+            }
+        }
+    }
+
+    /// Start on a trajectory: F_L = F_d(0) (within the bounds) and the spool opening that
+    /// gives dF_L/dt = dF_d/dt(0) with the piston moving at `piston_velocity_m_s`.
+    pub fn start_on_trajectory(
+        &self,
+        h: &mut HydraulicState,
+        force_n: f64,
+        rate_n_per_s: f64,
+        piston_velocity_m_s: f64,
+    ) {
+        let c = &self.coeffs;
+        let (lo, hi) = self.force_bounds_n;
+        h.force_n = force_n.clamp(lo, hi);
+        h.spool_m = (rate_n_per_s + c.n2 * piston_velocity_m_s + c.n3 * h.force_n - c.n4) / c.n1;
+    }
+
+    /// dF_L/dt (N/s) and the mean-pressure rate (Pa/s) at a state. `inp` carries the piston
+    /// velocity and the force-rate disturbance; `u` is not needed.
+    pub fn force_rate(&self, h: &HydraulicState, piston: &PistonKinematics, inp: &ForceChannelInput) -> (f64, f64) {
+        match &self.chambers {
+            Chambers::Linear => (self.coeffs.force_rate(&h.channel(), inp), 0.0),
+            Chambers::Two(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, h.mean_pressure_pa);
+                let extra = inp.force_rate_dist_n_per_s + h.accel_dist_n_per_s;
+                let (d1, d2) = tc.pressure_rates(p1, p2, h.spool_m, piston.position_m, piston.velocity_m_s, extra);
+                let (df, _) = tc.force_and_mean(d1, d2);
+                (df, 0.5 * (d1 + d2))
+            }
+        }
+    }
+
+    /// The load cell's rate: held at a supply-pressure bound (linear model) F_L does not move,
+    /// so a rate pushing past the bound reads 0.
+    pub fn rate_at_bound(&self, h: &HydraulicState, rate_n_per_s: f64) -> f64 {
+        let (lo, hi) = self.force_bounds_n;
+        let out = (h.force_n >= hi && rate_n_per_s > 0.0) || (h.force_n <= lo && rate_n_per_s < 0.0);
+        if matches!(self.chambers, Chambers::Linear) && out {
+            0.0
+        } else {
+            rate_n_per_s
+        }
+    }
+
+    /// Time derivative of the hydraulic state, with the hard stops applied: the spool does not
+    /// move past its travel limit, F_L not past its bounds (linear model). `force_rate_n_per_s`
+    /// comes from [`Self::force_rate`] and [`Self::rate_at_bound`].
+    pub fn derivatives(
+        &self,
+        h: &HydraulicState,
+        inp: &ForceChannelInput,
+        force_rate_n_per_s: f64,
+        mean_pressure_rate_pa_s: f64,
+    ) -> HydraulicState {
+        let dh = self.coeffs.derivatives(&h.channel(), inp);
+        let mut d = HydraulicState {
+            force_n: force_rate_n_per_s,
+            spool_m: dh.spool_m,
+            accel_dist_n_per_s: dh.accel_dist_n_per_s,
+            mean_pressure_pa: mean_pressure_rate_pa_s,
+        };
+        let sl = self.spool_limit_m;
+        if sl > 0.0 && h.spool_m.abs() >= sl && d.spool_m * h.spool_m > 0.0 {
+            d.spool_m = 0.0;
+        }
+        if matches!(self.chambers, Chambers::Linear) {
+            let (lo, hi) = self.force_bounds_n;
+            if (h.force_n >= hi && d.force_n > 0.0) || (h.force_n <= lo && d.force_n < 0.0) {
+                d.force_n = 0.0;
+            }
+        }
+        d
+    }
+
+    /// Whether the cylinder is at its force limit (linear: a bound; two chambers: a pressure
+    /// at p_r or p_s).
+    pub fn at_limit(&self, h: &HydraulicState) -> bool {
+        match &self.chambers {
+            Chambers::Linear => {
+                let (lo, hi) = self.force_bounds_n;
+                h.force_n <= lo || h.force_n >= hi
+            }
+            Chambers::Two(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, h.mean_pressure_pa);
+                p1 <= tc.p_r || p1 >= tc.p_s || p2 <= tc.p_r || p2 >= tc.p_s
+            }
+        }
+    }
+
+    /// The part of the true dx2/dt that is not the lumped disturbance's business: the linear
+    /// model's analytic `n1*dx_v/dt - n2*xc_ddot - n3*x2 + d(d_F)/dt + D_acc`; None for the
+    /// two-chamber model (no closed form).
+    pub fn force_accel(
+        &self,
+        spool_rate_m_s: f64,
+        piston_accel_m_s2: f64,
+        force_rate_n_per_s: f64,
+        force_rate_dist_rate: f64,
+        accel_dist_n_per_s2: f64,
+    ) -> Option<f64> {
+        let c = &self.coeffs;
+        match self.chambers {
+            Chambers::Linear => Some(
+                c.n1 * spool_rate_m_s - c.n2 * piston_accel_m_s2 - c.n3 * force_rate_n_per_s
+                    + force_rate_dist_rate
+                    + accel_dist_n_per_s2,
+            ),
+            Chambers::Two(_) => None,
+        }
+    }
+
+    /// Hold the states that sit against hard stops after a step.
+    pub fn clamp(&self, h: &mut HydraulicState) {
+        let sl = self.spool_limit_m;
+        if sl > 0.0 {
+            h.spool_m = h.spool_m.clamp(-sl, sl);
+        }
+        match &self.chambers {
+            Chambers::Linear => h.force_n = h.force_n.clamp(self.force_bounds_n.0, self.force_bounds_n.1),
+            Chambers::Two(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, h.mean_pressure_pa);
+                let (p1, p2) = tc.clamp(p1, p2);
+                (h.force_n, h.mean_pressure_pa) = tc.force_and_mean(p1, p2);
+            }
+        }
+    }
+
+    /// Apply a piston stroke `dx_m` at position `xc_m` that the force ODE did not see: the oil
+    /// spring acts on the geometric change of cylinder length.
+    pub fn apply_stroke(&self, h: &mut HydraulicState, xc_m: f64, dx_m: f64) {
+        match &self.chambers {
+            Chambers::Linear => h.force_n -= self.coeffs.n2 * dx_m,
+            Chambers::Two(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, h.mean_pressure_pa);
+                let (d1, d2) = tc.pressure_change_for_stroke(xc_m, dx_m);
+                (h.force_n, h.mean_pressure_pa) = tc.force_and_mean(p1 + d1, p2 + d2);
+            }
+        }
+    }
+}

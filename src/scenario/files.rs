@@ -1,0 +1,184 @@
+//! Files a scenario names (URDF, gait CSV): found once, read with a size cap, hashed, and
+//! parsed once per process or sweep ([`Resources`]), so every run that shares a file shares
+//! its parsed form and the tables built from it.
+
+use crate::error::{Error, Result};
+use crate::leg::LegModel;
+use crate::plant::{MassTable, BUILTIN_URDFS};
+use crate::reference::{GaitCycle, KneeForceReference, BUILTIN_TRIALS};
+use sha2::{Digest, Sha256};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// Largest URDF or gait CSV read (bytes). Documented in the README.
+pub const MAX_INPUT_FILE_BYTES: u64 = 8 << 20;
+/// Largest scenario file read (bytes).
+pub const MAX_SCENARIO_FILE_BYTES: u64 = 1 << 20;
+
+/// SHA-256 of some bytes, as lowercase hex.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    format!("{:x}", Sha256::digest(bytes))
+}
+
+/// Read a text file with a size cap; errors name the path.
+pub fn read_capped(path: &Path, cap: u64) -> Result<String> {
+    let rerr = |e: std::io::Error| Error::Read { path: path.to_path_buf(), message: e.to_string() };
+    let meta = std::fs::metadata(path).map_err(rerr)?;
+    if !meta.is_file() {
+        return Err(Error::Read { path: path.to_path_buf(), message: "not a regular file".into() });
+    }
+    if meta.len() > cap {
+        return Err(Error::Read {
+            path: path.to_path_buf(),
+            message: format!("{} bytes, more than the {} byte limit", meta.len(), cap),
+        });
+    }
+    use std::io::Read;
+    let mut text = String::new();
+    std::fs::File::open(path).map_err(rerr)?.take(cap + 1).read_to_string(&mut text).map_err(rerr)?;
+    if text.len() as u64 > cap {
+        return Err(Error::Read { path: path.to_path_buf(), message: format!("more than the {cap} byte limit") });
+    }
+    Ok(text)
+}
+
+/// Find a file a scenario names: an absolute path as is; a relative one next to the scenario
+/// file first (`base_dir`), then in the working directory. The error names the key and the
+/// places tried. The result is absolute, so a run records where its input really was.
+pub fn resolve_path(source_name: &str, key: &str, file: &str, base_dir: Option<&Path>) -> Result<PathBuf> {
+    let p = Path::new(file);
+    let candidates: Vec<PathBuf> = if p.is_absolute() {
+        vec![p.to_path_buf()]
+    } else {
+        base_dir.map(|d| d.join(p)).into_iter().chain(std::iter::once(p.to_path_buf())).collect()
+    };
+    let found = candidates.iter().find(|c| c.is_file()).cloned().ok_or_else(|| {
+        let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+        Error::input(source_name, key, format!("file not found (tried {})", tried.join(", ")))
+    })?;
+    Ok(std::fs::canonicalize(&found).unwrap_or(found))
+}
+
+/// An input file's text with where it came from and its hash.
+#[derive(Debug, Clone)]
+pub struct InputText {
+    /// `builtin:...` or the absolute path.
+    pub origin: String,
+    /// The text.
+    pub text: Arc<str>,
+    /// SHA-256 of the text (hex).
+    pub sha256: String,
+}
+
+/// A loaded leg: the validated model and its effective-mass table.
+#[derive(Debug)]
+pub struct LoadedLeg {
+    /// The model.
+    pub model: Arc<LegModel>,
+    /// Its effective-mass table.
+    pub mass: Arc<MassTable>,
+}
+
+/// Key of a cached gait feedforward: (leg sha, knee joint, gait sha, harmonics, stride bits,
+/// hip driven, friction parameter bits).
+type CascadeKey = (String, String, String, usize, u64, bool, [u64; 5]);
+
+/// Parsed inputs shared by all runs of a process or sweep. Every entry is built the first
+/// time it is asked for and reused after; errors are not cached.
+#[derive(Default)]
+pub struct Resources {
+    texts: Mutex<HashMap<String, InputText>>,
+    legs: Mutex<HashMap<(String, String), Arc<LoadedLeg>>>,
+    gaits: Mutex<HashMap<(String, usize), Arc<GaitCycle>>>,
+    cascades: Mutex<HashMap<CascadeKey, Arc<KneeForceReference>>>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+impl Resources {
+    /// A fresh, empty cache.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The URDF text for `leg.urdf` (`builtin:...` or a path resolved by the caller).
+    pub fn urdf_text(&self, source_name: &str, urdf: &str, base_dir: Option<&Path>) -> Result<InputText> {
+        if let Some((name, text)) = BUILTIN_URDFS.iter().find(|(n, _)| *n == urdf) {
+            return Ok(InputText {
+                origin: name.to_string(),
+                text: Arc::from(*text),
+                sha256: sha256_hex(text.as_bytes()),
+            });
+        }
+        let path = resolve_path(source_name, "leg.urdf", urdf, base_dir)?;
+        self.file_text(&path)
+    }
+
+    /// The gait CSV text for `reference.gait_file`, or a built-in trial's.
+    pub fn gait_text(&self, source_name: &str, file: &str, base_dir: Option<&Path>) -> Result<InputText> {
+        let path = resolve_path(source_name, "reference.gait_file", file, base_dir)?;
+        self.file_text(&path)
+    }
+
+    /// A built-in trial's text (None if there is no such trial).
+    pub fn builtin_gait_text(name: &str) -> Option<(InputText, f64)> {
+        BUILTIN_TRIALS.iter().find(|t| t.0 == name).map(|(n, text, stride)| {
+            (InputText { origin: n.to_string(), text: Arc::from(*text), sha256: sha256_hex(text.as_bytes()) }, *stride)
+        })
+    }
+
+    fn file_text(&self, path: &Path) -> Result<InputText> {
+        let key = path.display().to_string();
+        if let Some(t) = lock(&self.texts).get(&key) {
+            return Ok(t.clone());
+        }
+        let text = read_capped(path, MAX_INPUT_FILE_BYTES)?;
+        let t = InputText { origin: key.clone(), sha256: sha256_hex(text.as_bytes()), text: Arc::from(text) };
+        lock(&self.texts).insert(key, t.clone());
+        Ok(t)
+    }
+
+    /// The leg model of a URDF text (parsed and tabulated once per text and knee joint).
+    pub fn leg(&self, urdf: &InputText, knee_joint: &str) -> std::result::Result<Arc<LoadedLeg>, crate::leg::LegError> {
+        let key = (urdf.sha256.clone(), knee_joint.to_string());
+        let mut legs = lock(&self.legs);
+        if let Some(l) = legs.get(&key) {
+            return Ok(l.clone());
+        }
+        let model = LegModel::from_urdf_str(&urdf.text, knee_joint)?;
+        let mass = MassTable::new(&model)?;
+        let l = Arc::new(LoadedLeg { model: Arc::new(model), mass: Arc::new(mass) });
+        legs.insert(key, l.clone());
+        Ok(l)
+    }
+
+    /// The parsed gait cycle of a CSV text (once per text and harmonics).
+    pub fn gait(&self, csv: &InputText, name: &str, harmonics: usize) -> Result<Arc<GaitCycle>> {
+        let key = (csv.sha256.clone(), harmonics);
+        let mut gaits = lock(&self.gaits);
+        if let Some(g) = gaits.get(&key) {
+            return Ok(g.clone());
+        }
+        let g = Arc::new(GaitCycle::parse(name, &csv.text, harmonics)?);
+        gaits.insert(key, g.clone());
+        Ok(g)
+    }
+
+    /// A gait feedforward, built once per key with `build`.
+    pub fn cascade(
+        &self,
+        key: CascadeKey,
+        build: impl FnOnce() -> Result<KneeForceReference>,
+    ) -> Result<Arc<KneeForceReference>> {
+        let mut c = lock(&self.cascades);
+        if let Some(k) = c.get(&key) {
+            return Ok(k.clone());
+        }
+        let k = Arc::new(build()?);
+        c.insert(key, k.clone());
+        Ok(k)
+    }
+}

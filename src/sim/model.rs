@@ -1,0 +1,63 @@
+//! The immutable model of a run (MuJoCo's `mjModel`): every block's parameters, resolved,
+//! with shared leg models. Built once by `scenario::resolve`; the loop only reads it.
+
+use super::Integrator;
+use crate::control::{ControllerParams, KneePd, NominalModel};
+use crate::disturbance::Disturbances;
+use crate::human::HumanParams;
+use crate::hydraulics::{ActuatorParams, Cylinder, FrictionParams};
+use crate::metrics::MetricSettings;
+use crate::plant::{LegSetup, PlantSetup};
+use crate::reference::ForceReference;
+use crate::sensors::SensorParams;
+
+/// Everything the co-simulation loop needs, resolved and validated.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// Where the scenario came from (for messages).
+    pub source_name: String,
+    /// Number of fixed steps.
+    pub steps: usize,
+    /// Fixed step (s).
+    pub dt_s: f64,
+    /// Integration scheme for the force channel, predictor and controller states.
+    pub integrator: Integrator,
+    /// Seed of every random element.
+    pub seed: u64,
+    /// Controller sampling: every this many steps (None = continuous).
+    pub sample_every: Option<usize>,
+    /// The plant.
+    pub plant: PlantSetup,
+    /// The desired force (and knee trajectory).
+    pub reference: ForceReference,
+    /// The gait cascade's outer knee PD (gait runs on the leg).
+    pub knee_pd: Option<KneePd>,
+    /// The cylinder of the plant.
+    pub cylinder: Cylinder,
+    /// The controller's settings.
+    pub controller: ControllerParams,
+    /// The controller's nominal model.
+    pub nominal: NominalModel,
+    /// Piston friction.
+    pub friction: FrictionParams,
+    /// Actuator mode and limits.
+    pub actuator: ActuatorParams,
+    /// Human-robot interaction.
+    pub human: HumanParams,
+    /// Injected disturbances.
+    pub disturbance: Disturbances,
+    /// Sensors (sampled mode).
+    pub sensors: SensorParams,
+    /// Metric settings.
+    pub metrics: MetricSettings,
+}
+
+impl Model {
+    /// The leg setup, for leg runs.
+    pub fn leg(&self) -> Option<&LegSetup> {
+        match &self.plant {
+            PlantSetup::Leg(l) => Some(l),
+            PlantSetup::Bench(_) => None,
+        }
+    }
+}

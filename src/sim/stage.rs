@@ -1,0 +1,209 @@
+//! One evaluation of the continuous dynamics (an integrator stage), and the record of a row.
+
+use super::Model;
+use super::{Held, State};
+use crate::control::{ControlOutput, Controller, ValveLimit};
+use crate::disturbance::{CHANNEL_FORCE_ACCEL, CHANNEL_FORCE_RATE, CHANNEL_SPOOL};
+use crate::human::HumanMode;
+use crate::hydraulics::{ActuatorMode, ForceChannelInput, ForceSource, PistonKinematics};
+use crate::plant::{PistonMotion, PistonPredictor, Plant};
+use crate::record::Row;
+use crate::reference::RefSample;
+use crate::sensors::Truth;
+
+/// Everything one evaluation produces.
+pub(super) struct Stage {
+    /// Time derivative of the state.
+    pub derivative: State,
+    /// The controller output in force at this stage.
+    pub out: ControlOutput,
+    /// x2 = dF_L/dt (N/s), as the load cell sees it (0 past a force bound).
+    pub force_rate_n_per_s: f64,
+    /// True lumped disturbance on dx2/dt relative to the nominal model (N/s^2; NaN for the
+    /// two-chamber plant).
+    pub lumped_n_per_s2: f64,
+    /// The cylinder is at its force limit.
+    pub force_limited: bool,
+}
+
+/// The immutable model of a run plus the continuous controller (if any): what a stage needs.
+pub(super) struct Dynamics<'a> {
+    pub sc: &'a Model,
+    pub controller: Option<&'a dyn Controller>,
+}
+
+impl Dynamics<'_> {
+    /// Desired force at `t` with the held outer-loop force.
+    pub fn reference_at(&self, t: f64, held: &Held) -> RefSample {
+        self.sc.reference.force_at(t, held.pd_force_n)
+    }
+
+    /// The gait cascade's outer-loop force for a knee reading at `t` (0 without a cascade).
+    pub fn pd_force(&self, t: f64, knee_rad: f64, knee_rate_rad_s: f64) -> f64 {
+        match (&self.sc.knee_pd, self.sc.leg(), self.sc.reference.knee_at(t)) {
+            (Some(pd), Some(leg), Some(desired)) => pd.force_n(&leg.model, &desired, knee_rad, knee_rate_rad_s),
+            _ => 0.0,
+        }
+    }
+
+    /// Piston motion at a stage: prescribed by the plant, or from the predictor states.
+    pub fn piston(&self, t: f64, s: &State, plant: &dyn Plant, pred: Option<&PistonPredictor>) -> PistonMotion {
+        match pred {
+            None => plant.piston_at(t),
+            Some(p) => {
+                // The force ODE sees the plant integrator's effective velocity v + a*lead (see
+                // PistonPredictor).
+                let v = s.piston.velocity_m_s;
+                let a = p.free_accel_m_s2 + (s.hyd.force_n - self.sc.friction.force_n(v)) / p.effective_mass_kg;
+                let v_eff = v + (a - p.lead_exempt_accel_m_s2) * p.velocity_lead_s;
+                PistonMotion { position_m: s.piston.position_m, velocity_m_s: v_eff, accel_m_s2: a }
+            }
+        }
+    }
+
+    /// The force-channel inputs other than `u`, the raw x2 = dF_L/dt, d(d_F)/dt and the mean
+    /// chamber pressure rate at time `t`.
+    fn environment(
+        &self,
+        t: f64,
+        s: &State,
+        piston: &PistonMotion,
+        r: &RefSample,
+    ) -> (ForceChannelInput, f64, f64, f64) {
+        let f = self.sc;
+        let (dist, seed) = (&f.disturbance, f.seed);
+        let (d_f, d_f_rate) = dist.force_rate.value_and_rate(t, seed, CHANNEL_FORCE_RATE);
+        let mut inp = ForceChannelInput {
+            valve_command: 0.0,
+            piston_velocity_m_s: piston.velocity_m_s,
+            force_rate_dist_n_per_s: d_f,
+            force_accel_dist_n_per_s2: 0.0,
+            spool_dist_m_per_s: dist.spool.value(t, seed, CHANNEL_SPOOL),
+        };
+        let kin = PistonKinematics { position_m: piston.position_m, velocity_m_s: piston.velocity_m_s };
+        let (x2, d_mean) = self.sc.cylinder.force_rate(&s.hyd, &kin, &inp);
+        let mut d_acc = dist.force_accel.value(t, seed, CHANNEL_FORCE_ACCEL)
+            + dist.state_gain_force * s.hyd.force_n
+            + dist.state_gain_force_rate * x2;
+        if f.human.mode == HumanMode::Paper {
+            d_acc += f.human.interaction(s.hyd.force_n - r.value, x2 - r.rate);
+        }
+        inp.force_accel_dist_n_per_s2 = d_acc;
+        (inp, x2, d_f_rate, d_mean)
+    }
+
+    /// What ideal sensors read: the plant's state at `t` (the piston from the plant, not the
+    /// predictor) and the load cell's rate `x2`.
+    pub fn truth(&self, s: &State, x2: f64, plant: &dyn Plant, t: f64) -> Truth {
+        let p = plant.piston_at(t);
+        Truth {
+            force_n: s.hyd.force_n,
+            force_rate_n_per_s: x2,
+            spool_m: s.hyd.spool_m,
+            piston_m: p.position_m,
+            piston_velocity_m_s: p.velocity_m_s,
+            piston_accel_m_s2: p.accel_m_s2,
+            knee_rad: plant.knee_rad(),
+            knee_rate_rad_s: plant.knee_rate_rad_s(),
+        }
+    }
+
+    /// Evaluate the continuous dynamics at (t, s) with what is held over the step.
+    pub fn evaluate(&self, t: f64, s: &State, plant: &dyn Plant, held: &Held) -> Stage {
+        let sc = self.sc;
+        let pred = held.predictor.as_ref();
+        let mut piston = self.piston(t, s, plant, pred);
+        let r = self.reference_at(t, held);
+        let (mut inp, x2_raw, d_f_rate, d_mean) = self.environment(t, s, &piston, &r);
+        let x2 = sc.cylinder.rate_at_bound(&s.hyd, x2_raw);
+        // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
+        // da/dt = (dF_L/dt - F_f'(v)*a)/m_eff: the piston acceleration the force ODE
+        // experiences, so it is what an ideal sensor reports.
+        if let Some(p) = pred {
+            let a = piston.accel_m_s2;
+            let a_dot = (x2 - sc.friction.slope_n_s_per_m(s.piston.velocity_m_s) * a) / p.effective_mass_kg;
+            piston.accel_m_s2 = a + p.velocity_lead_s * a_dot;
+        }
+        let y = Truth {
+            force_n: s.hyd.force_n,
+            force_rate_n_per_s: x2,
+            spool_m: s.hyd.spool_m,
+            piston_m: piston.position_m,
+            piston_velocity_m_s: piston.velocity_m_s,
+            piston_accel_m_s2: piston.accel_m_s2,
+            knee_rad: plant.knee_rad(),
+            knee_rate_rad_s: plant.knee_rate_rad_s(),
+        }
+        .ideal();
+        let mut derivative = State::default();
+        let out = match (held.output, self.controller) {
+            (Some(o), _) => o,
+            (None, Some(c)) => {
+                let n = c.state_len();
+                let o = ValveLimit(sc.actuator.valve_command_limit).apply(c.output(t, &r, &y, &s.controller[..n]));
+                c.derivatives(t, &r, &y, &s.controller[..n], &o, &mut derivative.controller[..n]);
+                o
+            }
+            (None, None) => ControlOutput::default(),
+        };
+        inp.valve_command = out.valve_command;
+        derivative.hyd = sc.cylinder.derivatives(&s.hyd, &inp, x2, d_mean);
+        if let Some(p) = pred {
+            derivative.piston.position_m = piston.velocity_m_s;
+            derivative.piston.velocity_m_s =
+                p.free_accel_m_s2 + (s.hyd.force_n - sc.friction.force_n(s.piston.velocity_m_s)) / p.effective_mass_kg;
+        }
+        // True dx2/dt (linear model, analytic) and the part of it the controller's nominal model
+        // does not explain; NaN for the two-chamber model.
+        let spool_rate = sc.cylinder.coeffs.spool_rate(&s.hyd.channel(), &inp);
+        let lumped_n_per_s2 =
+            match sc.cylinder.force_accel(spool_rate, piston.accel_m_s2, x2, d_f_rate, inp.force_accel_dist_n_per_s2) {
+                Some(dx2) => dx2 - sc.nominal.force_accel(out.valve_command, &y),
+                None => f64::NAN,
+            };
+        Stage { derivative, out, force_rate_n_per_s: x2, lumped_n_per_s2, force_limited: sc.cylinder.at_limit(&s.hyd) }
+    }
+
+    /// The net force the actuator applies to the mechanics (N).
+    pub fn cylinder_force(&self, s: &State, piston_velocity_m_s: f64, r: &RefSample) -> f64 {
+        let act = &self.sc.actuator;
+        match act.mode {
+            ActuatorMode::Hydraulic => s.hyd.force_n - self.sc.friction.force_n(piston_velocity_m_s),
+            ActuatorMode::Force => match act.force_source {
+                ForceSource::Constant => act.force_n,
+                ForceSource::Reference => r.value,
+            },
+            ActuatorMode::Free => 0.0,
+        }
+    }
+
+    /// The row of state `s` at `t`, with the stage `st` evaluated there and the interaction
+    /// force `w1`.
+    pub fn row(&self, t: f64, s: &State, st: &Stage, w1: f64, plant: &dyn Plant, held: &Held) -> Row {
+        let r = self.reference_at(t, held);
+        let p = plant.piston_at(t);
+        Row {
+            t_s: t,
+            ref_force_n: r.value,
+            ref_force_rate_n_per_s: r.rate,
+            load_force_n: s.hyd.force_n,
+            force_error_n: s.hyd.force_n - r.value,
+            force_rate_n_per_s: st.force_rate_n_per_s,
+            valve_command: st.out.valve_command,
+            valve_saturated: st.out.saturated,
+            spool_m: s.hyd.spool_m,
+            force_limited: st.force_limited,
+            piston_m: p.position_m,
+            piston_velocity_m_s: p.velocity_m_s,
+            friction_force_n: self.sc.friction.force_n(p.velocity_m_s),
+            cylinder_force_n: self.cylinder_force(s, p.velocity_m_s, &r),
+            interaction_force: w1,
+            disturbance_estimate_n_per_s2: st.out.disturbance_estimate_n_per_s2,
+            rbf_output_n_per_s2: st.out.rbf_output_n_per_s2,
+            lumped_disturbance_n_per_s2: st.lumped_n_per_s2,
+            ref_knee_deg: self.sc.reference.knee_at(t).map(|k| k.value.to_degrees()),
+            leg: plant.leg_row(),
+            contact: None,
+        }
+    }
+}

@@ -1,0 +1,112 @@
+//! The typed state of the co-simulation loop and its packing for the integrators
+//! (MuJoCo keeps `qpos`/`act` as named slices of one array; so do we, in one place).
+
+use crate::control::MAX_CONTROLLER_STATES;
+use crate::hydraulics::HydraulicState;
+
+/// Piston states of the leg's local piston model inside a step (unused for a prescribed piston).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PistonState {
+    /// Predicted piston position (m).
+    pub position_m: f64,
+    /// Predicted piston velocity (m/s).
+    pub velocity_m_s: f64,
+}
+
+/// Everything the loop integrates over a step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct State {
+    /// Force channel.
+    pub hyd: HydraulicState,
+    /// Piston predictor.
+    pub piston: PistonState,
+    /// Continuous controller state (the first `n` entries are used).
+    pub controller: [f64; MAX_CONTROLLER_STATES],
+}
+
+/// Number of plant-side entries in the packed vector.
+const PLANT_LEN: usize = 6;
+/// Length of the packed state vector.
+pub const PACKED_LEN: usize = PLANT_LEN + MAX_CONTROLLER_STATES;
+/// The flat vector the integrators see.
+pub type Packed = [f64; PACKED_LEN];
+
+const FORCE: usize = 0;
+const SPOOL: usize = 1;
+const ACCEL_DIST: usize = 2;
+const PISTON_POSITION: usize = 3;
+const PISTON_VELOCITY: usize = 4;
+const MEAN_PRESSURE: usize = 5;
+
+/// Names of the plant-side entries, in packed order (used in divergence reports).
+const NAMES: [&str; PLANT_LEN] = [
+    "load_force_n",
+    "spool_m",
+    "accel_disturbance_integral_n_per_s",
+    "predicted_piston_m",
+    "predicted_piston_velocity_m_s",
+    "mean_chamber_pressure_pa",
+];
+
+impl State {
+    /// Flatten for the integrator.
+    pub fn pack(&self) -> Packed {
+        let mut x = [0.0; PACKED_LEN];
+        x[FORCE] = self.hyd.force_n;
+        x[SPOOL] = self.hyd.spool_m;
+        x[ACCEL_DIST] = self.hyd.accel_dist_n_per_s;
+        x[PISTON_POSITION] = self.piston.position_m;
+        x[PISTON_VELOCITY] = self.piston.velocity_m_s;
+        x[MEAN_PRESSURE] = self.hyd.mean_pressure_pa;
+        x[PLANT_LEN..].copy_from_slice(&self.controller);
+        x
+    }
+
+    /// Back from the integrator's vector.
+    pub fn unpack(x: &Packed) -> Self {
+        let mut controller = [0.0; MAX_CONTROLLER_STATES];
+        controller.copy_from_slice(&x[PLANT_LEN..]);
+        State {
+            hyd: HydraulicState {
+                force_n: x[FORCE],
+                spool_m: x[SPOOL],
+                accel_dist_n_per_s: x[ACCEL_DIST],
+                mean_pressure_pa: x[MEAN_PRESSURE],
+            },
+            piston: PistonState { position_m: x[PISTON_POSITION], velocity_m_s: x[PISTON_VELOCITY] },
+            controller,
+        }
+    }
+
+    /// The first non-finite entry, with its name (`controller_names` name the controller's
+    /// entries), in packed order.
+    pub fn first_non_finite(&self, controller_names: &[String]) -> Option<(String, f64)> {
+        let x = self.pack();
+        let i = x.iter().position(|v| !v.is_finite())?;
+        let name = match NAMES.get(i) {
+            Some(n) => n.to_string(),
+            None => controller_names.get(i - PLANT_LEN).cloned().unwrap_or_else(|| format!("controller_state_{i}")),
+        };
+        Some((name, x[i]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pack_round_trips_and_names_the_bad_entry() {
+        let mut s = State::default();
+        s.hyd.force_n = 1.0;
+        s.hyd.mean_pressure_pa = 2.0;
+        s.piston.velocity_m_s = 3.0;
+        s.controller[2] = 4.0;
+        assert_eq!(State::unpack(&s.pack()), s);
+        s.controller[1] = f64::NAN;
+        let (name, _) = s.first_non_finite(&["z".into(), "w1".into()]).unwrap();
+        assert_eq!(name, "w1");
+        s.piston.position_m = f64::INFINITY;
+        assert_eq!(s.first_non_finite(&[]).unwrap().0, "predicted_piston_m");
+    }
+}

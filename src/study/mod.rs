@@ -1,0 +1,10 @@
+//! Studies built on the simulation core: one run written to a folder, the paper's cases,
+//! parameter sweeps, the robustness report, and the gait-test API.
+
+pub mod compare;
+pub mod gait_test;
+pub mod robustness;
+mod single;
+pub mod sweep;
+
+pub use single::*;

@@ -1,0 +1,87 @@
+//! One run written to an output folder: streamed `timeseries.csv`, `summary.json` and plots.
+
+use crate::error::Result;
+use crate::metrics::{check_criteria, CriterionResult, Summary};
+use crate::output::{force_tracking_png, knee_tracking_png, write_json, CsvSink, PlotBuffer};
+use crate::record::{RecordSink, Tee};
+use crate::scenario::{InputRecord, ResolvedScenario, ScenarioFile};
+use serde::Serialize;
+use std::path::Path;
+
+/// What `summary.json` holds: the figures, the criteria verdict, the files read, and the
+/// resolved scenario (feed the file back to `exoleg run` to reproduce the run).
+#[derive(Debug, Clone, Serialize)]
+pub struct SummaryFile<'a> {
+    /// The figures.
+    #[serde(flatten)]
+    pub summary: &'a Summary,
+    /// Each criterion of the scenario, checked.
+    pub criteria_results: &'a [CriterionResult],
+    /// All criteria passed (true when there are none).
+    pub criteria_passed: bool,
+    /// The files the run read, with their content hashes.
+    pub inputs: &'a [InputRecord],
+    /// Design figures of the controller computed at start (sampled `dtznn`), if any.
+    pub controller_design: Option<serde_json::Value>,
+    /// The scenario as run.
+    pub scenario: &'a ScenarioFile,
+}
+
+/// The outcome of a run written to a folder.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    /// The figures.
+    pub summary: Summary,
+    /// The criteria checks.
+    pub criteria: Vec<CriterionResult>,
+}
+
+impl RunReport {
+    /// All criteria passed (true when there are none).
+    pub fn passed(&self) -> bool {
+        self.criteria.iter().all(|c| c.pass)
+    }
+}
+
+/// Plot title: scenario, controller, plant and reference.
+pub fn run_title(sc: &ResolvedScenario) -> String {
+    let f = &sc.file;
+    let reference = match &sc.model.reference {
+        crate::reference::ForceReference::Sine(s) => format!("F_d = {} N sine at {} Hz", s.amplitude, s.frequency_hz),
+        crate::reference::ForceReference::Gait(k) => format!("gait {}", k.gait.source),
+    };
+    format!("{} | {} | {:?} | {}", sc.source_name, f.controller.kind.as_str(), f.plant.kind, reference)
+}
+
+/// Run `sc`, writing `timeseries.csv`, `summary.json`, `force_tracking.png` and (gait)
+/// `knee_tracking.png` into `dir` (which must exist). `extra`: another sink fed the same rows.
+pub fn run_into(
+    sc: &ResolvedScenario,
+    dir: &Path,
+    title: &str,
+    extra: Option<&mut dyn RecordSink>,
+) -> Result<RunReport> {
+    let mut csv = CsvSink::create(&dir.join("timeseries.csv"))?;
+    let mut plots = PlotBuffer::new();
+    let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut csv, &mut plots];
+    if let Some(e) = extra {
+        sinks.push(e);
+    }
+    let (summary, design) = crate::sim::run_with_design(&sc.model, &mut Tee(sinks))?;
+    csv.finish()?;
+    let criteria = check_criteria(&sc.file.criteria, &summary);
+    let file = SummaryFile {
+        summary: &summary,
+        criteria_results: &criteria,
+        criteria_passed: criteria.iter().all(|c| c.pass),
+        inputs: &sc.inputs,
+        controller_design: design,
+        scenario: &sc.file,
+    };
+    write_json(&dir.join("summary.json"), &file)?;
+    force_tracking_png(&dir.join("force_tracking.png"), &plots, title)?;
+    if plots.has_knee() {
+        knee_tracking_png(&dir.join("knee_tracking.png"), &plots, title)?;
+    }
+    Ok(RunReport { summary, criteria })
+}

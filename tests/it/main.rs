@@ -1,0 +1,18 @@
+//! exoleg's integration tests, one binary (one link on two cores instead of twelve).
+
+mod common;
+
+mod architecture;
+mod bench_motion;
+mod cli;
+mod gait;
+mod leg_coupled;
+mod leg_hip;
+mod leg_passive;
+mod leg_statics;
+mod leg_urdf_errors;
+mod observer;
+mod paper_tables;
+mod sampled;
+mod shipped_outputs;
+mod validation;
