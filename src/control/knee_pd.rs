@@ -7,7 +7,7 @@
 //! It is updated once per step (continuous mode, from the plant's knee state) or once per
 //! sample (sampled mode, from the encoder reading) and held in between.
 
-use crate::leg::{moment_arm_at, LegModel};
+use crate::leg::{moment_arm_at, LegSpec};
 use crate::reference::RefSample;
 
 /// Knee PD gains (N m/rad, N m s/rad).
@@ -22,7 +22,7 @@ pub struct KneePd {
 impl KneePd {
     /// The PD force (N) along the cylinder for a desired knee sample `desired` (rad, rad/s)
     /// and a knee reading `knee_rad`, `knee_rate_rad_s`. 0 when both gains are 0.
-    pub fn force_n(&self, model: &LegModel, desired: &RefSample, knee_rad: f64, knee_rate_rad_s: f64) -> f64 {
+    pub fn force_n(&self, model: &LegSpec, desired: &RefSample, knee_rad: f64, knee_rate_rad_s: f64) -> f64 {
         if self.kp_nm_per_rad == 0.0 && self.kd_nm_s_per_rad == 0.0 {
             return 0.0;
         }

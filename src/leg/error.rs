@@ -66,13 +66,39 @@ pub enum LegError {
         /// The mass read, kg.
         mass: f64,
     },
-    /// The inertia tensor is not symmetric positive definite.
-    #[error("link '{link}' inertia tensor is not positive definite (leading minors {minors:?})")]
+    /// The inertia tensor is not symmetric positive semi-definite.
+    #[error("link '{link}' inertia tensor is not positive semi-definite (eigenvalues {eigenvalues:?} kg m^2)")]
     InertiaNotPositiveDefinite {
         /// Link name.
         link: String,
-        /// Leading principal minors (kg m^2, kg^2 m^4, kg^3 m^6).
-        minors: [f64; 3],
+        /// Eigenvalues (kg m^2).
+        eigenvalues: [f64; 3],
+    },
+    /// A body that moves (a link on a movable joint, with the links fixed to it) has no mass.
+    #[error("moving body '{link}' (links {links:?}) has no mass: give one of its links an <inertial> mass")]
+    MovingBodyWithoutMass {
+        /// The link on the movable joint.
+        link: String,
+        /// Every link welded into the body.
+        links: Vec<String>,
+    },
+    /// A body that moves has no rotational inertia (a point mass on a movable joint).
+    #[error("moving body '{link}' (links {links:?}) has no rotational inertia (eigenvalues {eigenvalues:?} kg m^2)")]
+    MovingBodyWithoutInertia {
+        /// The link on the movable joint.
+        link: String,
+        /// Every link welded into the body.
+        links: Vec<String>,
+        /// Eigenvalues of its inertia about its centre of mass (kg m^2).
+        eigenvalues: [f64; 3],
+    },
+    /// A value in the URDF is not finite, out of range or inconsistent.
+    #[error("{element}: {message}")]
+    Invalid {
+        /// The element, e.g. `joint 'knee'`.
+        element: String,
+        /// What is wrong.
+        message: String,
     },
     /// The joint graph is not a single tree.
     #[error("kinematic structure is not a tree: {0}")]

@@ -8,7 +8,7 @@
 //! The generalized knee torque of the actuator is `F * dL/dtheta`.
 
 use super::error::LegError;
-use super::model::{LegModel, LoopPose, GRAVITY_M_S2};
+use super::model::{LegSpec, LoopPose, GRAVITY_M_S2};
 use super::planar::Pose2;
 
 /// Central-difference step for the numerical derivatives below, rad.
@@ -19,20 +19,20 @@ const H: f64 = 1e-5;
 /// `L^2 = a^2 + b^2 - 2 a b cos(gamma)`, with `a` = |barrel pivot - knee centre|,
 /// `b` = |rod end - knee centre| and `gamma` the angle between the two at the knee, which varies
 /// one-to-one with the knee angle.
-pub fn cylinder_length_at(model: &LegModel, knee_rad: f64) -> f64 {
+pub fn cylinder_length_at(model: &LegSpec, knee_rad: f64) -> f64 {
     let (a, b, gamma) = triangle(model, knee_rad);
     (a * a + b * b - 2.0 * a * b * gamma.cos()).max(0.0).sqrt()
 }
 
 /// Moment arm `dL/dtheta` of the cylinder about the knee, m/rad (analytic derivative of the law
 /// of cosines: `sigma * a b sin(gamma) / L`). Negative when flexion shortens the cylinder.
-pub fn moment_arm_at(model: &LegModel, knee_rad: f64) -> f64 {
+pub fn moment_arm_at(model: &LegSpec, knee_rad: f64) -> f64 {
     let (a, b, gamma) = triangle(model, knee_rad);
     let l = (a * a + b * b - 2.0 * a * b * gamma.cos()).max(0.0).sqrt();
     model.geo.knee_sign * a * b * gamma.sin() / l
 }
 
-fn triangle(model: &LegModel, knee_rad: f64) -> (f64, f64, f64) {
+fn triangle(model: &LegSpec, knee_rad: f64) -> (f64, f64, f64) {
     let g = &model.geo;
     let pk = g.barrel_origin.t.minus(g.knee_origin.t); // knee -> pivot
     let w0 = g.shank_point.rot(g.knee_origin.a); // knee -> rod end at theta = 0
@@ -42,13 +42,13 @@ fn triangle(model: &LegModel, knee_rad: f64) -> (f64, f64, f64) {
 
 /// Solves the loop: barrel angle, rod extension and cylinder length for a knee angle.
 /// Errors if the rod cannot reach, or the extension is outside the prismatic limits.
-pub fn loop_pose_at(model: &LegModel, knee_rad: f64) -> Result<LoopPose, LegError> {
+pub fn loop_pose_at(model: &LegSpec, knee_rad: f64) -> Result<LoopPose, LegError> {
     model.loop_solution_checked(knee_rad)
 }
 
 /// Planar poses (x, z, pitch) of every link in the world frame for a knee angle, indexed like
-/// [`LegModel::links`]. Ignores prismatic limits (pure geometry).
-pub fn link_poses_at(model: &LegModel, knee_rad: f64) -> Result<Vec<Pose2>, LegError> {
+/// [`LegSpec::links`]. Ignores prismatic limits (pure geometry).
+pub fn link_poses_at(model: &LegSpec, knee_rad: f64) -> Result<Vec<Pose2>, LegError> {
     let sol = model.loop_solution(knee_rad).ok_or_else(|| LegError::Unreachable {
         actuator: model.actuator.name.clone(),
         knee_rad,
@@ -59,7 +59,7 @@ pub fn link_poses_at(model: &LegModel, knee_rad: f64) -> Result<Vec<Pose2>, LegE
 
 /// Gravitational potential energy `V(theta) = sum m g z_com` of all links (thigh included), J,
 /// with z measured from the hip.
-pub fn potential_energy_at(model: &LegModel, knee_rad: f64) -> Result<f64, LegError> {
+pub fn potential_energy_at(model: &LegSpec, knee_rad: f64) -> Result<f64, LegError> {
     let poses = link_poses_at(model, knee_rad)?;
     Ok(model
         .links
@@ -75,7 +75,7 @@ pub fn potential_energy_at(model: &LegModel, knee_rad: f64) -> Result<f64, LegEr
 /// Generalized inertia of the closed chain reduced to the knee angle, kg m^2:
 /// `M(theta) = sum_i m_i |d c_i/d theta|^2 + I_yy,i (d alpha_i / d theta)^2`, with the body
 /// velocities from the loop kinematics (numerical derivative of the poses).
-pub fn generalized_inertia_at(model: &LegModel, knee_rad: f64) -> Result<f64, LegError> {
+pub fn generalized_inertia_at(model: &LegSpec, knee_rad: f64) -> Result<f64, LegError> {
     let pp = link_poses_at(model, knee_rad + H)?;
     let pm = link_poses_at(model, knee_rad - H)?;
     let mut m = 0.0;
@@ -90,7 +90,7 @@ pub fn generalized_inertia_at(model: &LegModel, knee_rad: f64) -> Result<f64, Le
 
 /// Gravity torque about the knee, N m, positive in the flexion direction: `-dV/dtheta`
 /// (includes every body: shank, foot, cylinder barrel and rod).
-pub fn gravity_torque_at(model: &LegModel, knee_rad: f64) -> Result<f64, LegError> {
+pub fn gravity_torque_at(model: &LegSpec, knee_rad: f64) -> Result<f64, LegError> {
     let vp = potential_energy_at(model, knee_rad + H)?;
     let vm = potential_energy_at(model, knee_rad - H)?;
     Ok(-(vp - vm) / (2.0 * H))
@@ -98,14 +98,14 @@ pub fn gravity_torque_at(model: &LegModel, knee_rad: f64) -> Result<f64, LegErro
 
 /// Actuator force that holds the knee in static equilibrium at `knee_rad`, N
 /// (positive = pushing, lengthening): `F = (dV/dtheta) / (dL/dtheta)` (virtual work).
-pub fn holding_force_at(model: &LegModel, knee_rad: f64) -> Result<f64, LegError> {
+pub fn holding_force_at(model: &LegSpec, knee_rad: f64) -> Result<f64, LegError> {
     Ok(-gravity_torque_at(model, knee_rad)? / moment_arm_at(model, knee_rad))
 }
 
 /// Knee angular acceleration of the passive reduced model (Lagrange equation), rad/s^2:
 /// `M qdd + 1/2 M' qd^2 + V' = Q`, with `Q = F dL/dtheta + tau_ext`.
 pub fn reduced_acceleration(
-    model: &LegModel,
+    model: &LegSpec,
     knee_rad: f64,
     knee_vel: f64,
     actuator_force_n: f64,
@@ -159,8 +159,8 @@ pub fn hip_rotated(hip_rad: f64, p: &Pose2) -> Pose2 {
 }
 
 /// Link poses (x, z in m, pitch about +y in rad) in the world frame for hip flexion `hip_rad` and
-/// knee flexion `knee_rad` (rad), indexed like [`LegModel::links`].
-pub fn link_poses_with_hip_at(model: &LegModel, hip_rad: f64, knee_rad: f64) -> Result<Vec<Pose2>, LegError> {
+/// knee flexion `knee_rad` (rad), indexed like [`LegSpec::links`].
+pub fn link_poses_with_hip_at(model: &LegSpec, hip_rad: f64, knee_rad: f64) -> Result<Vec<Pose2>, LegError> {
     Ok(link_poses_at(model, knee_rad)?.iter().map(|p| hip_rotated(hip_rad, p)).collect())
 }
 
@@ -168,7 +168,7 @@ pub fn link_poses_with_hip_at(model: &LegModel, hip_rad: f64, knee_rad: f64) -> 
 /// (independent of the hip angle). `M_kk` equals [`generalized_inertia_at`]; `M_hh` is the
 /// inertia of the whole leg about the hip axis; `M_hk < 0` near full extension (a forward hip
 /// acceleration flexes a passive knee).
-pub fn hip_knee_mass_matrix_at(model: &LegModel, knee_rad: f64) -> Result<(f64, f64, f64), LegError> {
+pub fn hip_knee_mass_matrix_at(model: &LegSpec, knee_rad: f64) -> Result<(f64, f64, f64), LegError> {
     let p0 = link_poses_at(model, knee_rad)?;
     let pp = link_poses_at(model, knee_rad + H)?;
     let pm = link_poses_at(model, knee_rad - H)?;
@@ -188,7 +188,7 @@ pub fn hip_knee_mass_matrix_at(model: &LegModel, knee_rad: f64) -> Result<(f64, 
 
 /// Gravitational potential energy `sum m g z_com` of all links with a moving hip, J (z from the
 /// hip). `hip_rad`, `knee_rad` in rad (flexion positive).
-pub fn potential_energy_with_hip_at(model: &LegModel, hip_rad: f64, knee_rad: f64) -> Result<f64, LegError> {
+pub fn potential_energy_with_hip_at(model: &LegSpec, hip_rad: f64, knee_rad: f64) -> Result<f64, LegError> {
     let poses = link_poses_at(model, knee_rad)?;
     let (s, c) = hip_rad.sin_cos();
     Ok(model
@@ -203,7 +203,7 @@ pub fn potential_energy_with_hip_at(model: &LegModel, hip_rad: f64, knee_rad: f6
 }
 
 /// Mass-matrix entries and their knee derivatives: `(M_hh, M_hk, M_kk, M_hh', M_hk', M_kk')`.
-fn mass_terms(model: &LegModel, knee_rad: f64) -> Result<[f64; 6], LegError> {
+fn mass_terms(model: &LegSpec, knee_rad: f64) -> Result<[f64; 6], LegError> {
     let (mhh, mhk, mkk) = hip_knee_mass_matrix_at(model, knee_rad)?;
     let (hp, kp, pp) = hip_knee_mass_matrix_at(model, knee_rad + H_DM)?;
     let (hm, km, pm) = hip_knee_mass_matrix_at(model, knee_rad - H_DM)?;
@@ -213,7 +213,7 @@ fn mass_terms(model: &LegModel, knee_rad: f64) -> Result<[f64; 6], LegError> {
 
 /// Knee forces of the two-DoF model except the `M_kk thdd_k` term, N m.
 fn knee_bias(
-    model: &LegModel,
+    model: &LegSpec,
     m: &[f64; 6],
     hip: (f64, f64, f64),
     knee_rad: f64,
@@ -234,7 +234,7 @@ fn knee_bias(
 /// where `tau_k = F dL/dtheta_k + tau_ext` (F = actuator force in N, positive lengthening;
 /// `tau_ext` = external cuff torque on the knee coordinate, N m). With the hip fixed
 /// (`hip = (0, 0, 0)`) this is the inverse of [`reduced_acceleration`].
-pub fn knee_inverse_dynamics(model: &LegModel, hip: (f64, f64, f64), knee: (f64, f64, f64)) -> Result<f64, LegError> {
+pub fn knee_inverse_dynamics(model: &LegSpec, hip: (f64, f64, f64), knee: (f64, f64, f64)) -> Result<f64, LegError> {
     let m = mass_terms(model, knee.0)?;
     Ok(m[2] * knee.2 + knee_bias(model, &m, hip, knee.0, knee.1)?)
 }
@@ -243,7 +243,7 @@ pub fn knee_inverse_dynamics(model: &LegModel, hip: (f64, f64, f64), knee: (f64,
 /// rad/s^2, for a generalized knee force `tau_k` (N m, see [`knee_inverse_dynamics`]).
 /// `hip = (angle rad, rate rad/s, acceleration rad/s^2)`; `knee_rad` rad; `knee_vel` rad/s.
 pub fn knee_forward_acceleration(
-    model: &LegModel,
+    model: &LegSpec,
     hip: (f64, f64, f64),
     knee_rad: f64,
     knee_vel: f64,
@@ -258,7 +258,7 @@ pub fn knee_forward_acceleration(
 /// `hip`, `knee` = `(angle rad, rate rad/s, acceleration rad/s^2)`. The actuator's internal force
 /// pair does no work on the hip coordinate (both its ends turn with the thigh), so this is the
 /// torque the hip drive has to provide.
-pub fn hip_inverse_dynamics(model: &LegModel, hip: (f64, f64, f64), knee: (f64, f64, f64)) -> Result<f64, LegError> {
+pub fn hip_inverse_dynamics(model: &LegSpec, hip: (f64, f64, f64), knee: (f64, f64, f64)) -> Result<f64, LegError> {
     let m = mass_terms(model, knee.0)?;
     let dv = (potential_energy_with_hip_at(model, hip.0 + H, knee.0)?
         - potential_energy_with_hip_at(model, hip.0 - H, knee.0)?)

@@ -1,6 +1,6 @@
 //! Sagittal-plane leg + knee-exoskeleton hydraulic cylinder model.
 //!
-//! * [`LegModel`]: immutable model loaded from a URDF with two extension elements
+//! * [`LegSpec`]: immutable model loaded from a URDF with two extension elements
 //!   (`<loop_closure>` and `<hydraulic_actuator>`), validated, with the planar loop geometry.
 //! * [`Leg`]: Rapier 0.36 (f64) simulation of that model (multibody tree + impulse-joint loop
 //!   closure).
@@ -15,7 +15,8 @@ pub mod error;
 pub mod geometry;
 pub mod model;
 pub mod planar;
-pub mod sim;
+pub mod rapier;
+pub mod urdf;
 
 pub use error::LegError;
 pub use geometry::{
@@ -24,5 +25,5 @@ pub use geometry::{
     link_poses_with_hip_at, loop_pose_at, moment_arm_at, potential_energy_at, potential_energy_with_hip_at,
     reduced_acceleration,
 };
-pub use model::{ActuatorSpec, JointKind, JointSpec, LegModel, LinkSpec, LoopClosureSpec, LoopPose};
-pub use sim::{joint_origin_pose, HipCoupling, Leg, LegSolverParams};
+pub use model::{ActuatorSpec, JointKind, JointSpec, LegSpec, LinkSpec, LoopClosureSpec, LoopPose};
+pub use rapier::{joint_origin_pose, HipCoupling, Leg, LegSolverParams, Pose};

@@ -1,12 +1,11 @@
-//! Immutable leg model: URDF parsing (urdf-rs + a roxmltree pass for the extension elements),
-//! validation, and the planar loop geometry used both to initialise the simulation and by the
-//! Rapier-independent helpers in [`crate::leg::geometry`].
+//! Immutable leg model: links, joints, the loop-closure and actuator elements, and the planar
+//! loop geometry used both to initialise the simulation and by the Rapier-independent helpers
+//! in [`crate::leg::geometry`]. Built from URDF by [`crate::leg::urdf`], kept apart from it.
 //!
 //! Units: SI throughout (m, kg, kg m^2, rad, N, N m). Frame conventions: z up, the person faces
 //! +x, the sagittal plane is x-z and every movable joint of the loop rotates about the y axis
 //! (or slides in the x-z plane).
 
-use std::collections::HashMap;
 use std::path::Path;
 
 use super::error::LegError;
@@ -29,7 +28,7 @@ pub enum JointKind {
 }
 
 impl JointKind {
-    fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             JointKind::Revolute => "revolute",
             JointKind::Continuous => "continuous",
@@ -37,7 +36,7 @@ impl JointKind {
             JointKind::Fixed => "fixed",
         }
     }
-    fn is_hinge(self) -> bool {
+    pub(crate) fn is_hinge(self) -> bool {
         matches!(self, JointKind::Revolute | JointKind::Continuous)
     }
 }
@@ -62,9 +61,9 @@ pub struct JointSpec {
     pub name: String,
     /// Joint type.
     pub kind: JointKind,
-    /// Index of the parent link in [`LegModel::links`].
+    /// Index of the parent link in [`LegSpec::links`].
     pub parent: usize,
-    /// Index of the child link in [`LegModel::links`].
+    /// Index of the child link in [`LegSpec::links`].
     pub child: usize,
     /// `<origin xyz>` (position of the joint frame in the parent frame), m.
     pub origin_xyz: [f64; 3],
@@ -98,12 +97,12 @@ pub struct LoopClosureSpec {
 pub struct ActuatorSpec {
     /// Element name.
     pub name: String,
-    /// Index of the prismatic joint (in [`LegModel::joints`]) it drives.
+    /// Index of the prismatic joint (in [`LegSpec::joints`]) it drives.
     pub joint: usize,
 }
 
 /// Planar loop geometry, everything in the root (thigh) frame.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub(crate) struct LoopGeometry {
     /// Knee joint frame in the root frame (before the joint motion).
     pub knee_origin: Pose2,
@@ -129,15 +128,17 @@ pub(crate) struct LoopGeometry {
 
 /// Immutable, validated leg model: the parsed URDF plus the derived loop geometry.
 ///
-/// Build with [`LegModel::from_urdf_file`] or [`LegModel::from_urdf_str`].
+/// Build with [`LegSpec::from_urdf_file`] or [`LegSpec::from_urdf_str`].
 #[derive(Clone, Debug)]
-pub struct LegModel {
+pub struct LegSpec {
     pub(crate) robot_name: String,
     pub(crate) links: Vec<LinkSpec>,
     pub(crate) joints: Vec<JointSpec>,
     pub(crate) root: usize,
     /// Joints in parent-before-child order.
     pub(crate) topo_joints: Vec<usize>,
+    /// The joint whose child each link is (None for the root).
+    pub(crate) parent_joint: Vec<Option<usize>>,
     pub(crate) knee: usize,
     pub(crate) barrel: usize,
     pub(crate) rod: usize,
@@ -150,51 +151,7 @@ pub struct LegModel {
 /// (0..100 deg of flexion).
 pub const DEFAULT_KNEE_RANGE_RAD: (f64, f64) = (0.0, 100.0 * std::f64::consts::PI / 180.0);
 
-fn parse_vec3(text: &str, what: &str) -> Result<[f64; 3], LegError> {
-    let v: Vec<f64> = text
-        .split_whitespace()
-        .map(|t| t.parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| LegError::Urdf(format!("{what}: cannot parse '{text}': {e}")))?;
-    if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
-        return Err(LegError::Urdf(format!("{what}: expected 3 finite numbers, got '{text}'")));
-    }
-    Ok([v[0], v[1], v[2]])
-}
-
-/// Rotation matrix of URDF rpy: R = Rz(yaw) Ry(pitch) Rx(roll).
-pub(crate) fn rpy_matrix(rpy: [f64; 3]) -> [[f64; 3]; 3] {
-    let (sr, cr) = rpy[0].sin_cos();
-    let (sp, cp) = rpy[1].sin_cos();
-    let (sy, cy) = rpy[2].sin_cos();
-    [
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ]
-}
-
-fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut r = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    r
-}
-
-fn transpose(a: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut r = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = a[j][i];
-        }
-    }
-    r
-}
-
-impl LegModel {
+impl LegSpec {
     /// Load and validate a URDF file. `knee_joint` names the knee hinge (usually `"knee"`).
     pub fn from_urdf_file(path: impl AsRef<Path>, knee_joint: &str) -> Result<Self, LegError> {
         let path = path.as_ref();
@@ -203,354 +160,30 @@ impl LegModel {
     }
 
     /// Parse and validate URDF text. `knee_joint` names the knee hinge (usually `"knee"`).
+    /// See [`super::urdf`] for what is checked.
     pub fn from_urdf_str(text: &str, knee_joint: &str) -> Result<Self, LegError> {
-        // Pass 1: well-formedness + extension elements (urdf-rs drops unknown elements).
-        let doc = roxmltree::Document::parse(text).map_err(|e| LegError::Xml(e.to_string()))?;
-        let robot_el = doc.root_element();
-        if robot_el.tag_name().name() != "robot" {
-            return Err(LegError::Missing { what: "<robot> root element".into() });
-        }
-        // Pass 2: the standard URDF part.
-        let robot = urdf_rs::read_from_string(text).map_err(|e| LegError::Urdf(e.to_string()))?;
+        super::urdf::parse(text, knee_joint)
+    }
 
-        // ---- links ----
-        let mut links = Vec::with_capacity(robot.links.len());
-        let mut link_idx: HashMap<String, usize> = HashMap::new();
-        for l in &robot.links {
-            if link_idx.insert(l.name.clone(), links.len()).is_some() {
-                return Err(LegError::NotATree(format!("link '{}' defined twice", l.name)));
+    /// The fixed-joint walk: from `link` up through fixed joints to the first link that moves
+    /// on its own (or the root). Returns that ancestor and the fixed joints crossed, nearest
+    /// first. Every consumer composes the joints' origins in its own representation (planar
+    /// loop geometry, Rapier poses, cuff points, mass merging).
+    pub fn fixed_chain(&self, mut link: usize) -> (usize, Vec<usize>) {
+        let mut chain = Vec::new();
+        while let Some(ji) = self.parent_joint[link] {
+            if self.joints[ji].kind != JointKind::Fixed {
+                break;
             }
-            let m = l.inertial.mass.value;
-            if !(m.is_finite() && m > 0.0) {
-                return Err(LegError::NonPositiveMass { link: l.name.clone(), mass: m });
-            }
-            let i = &l.inertial.inertia;
-            let it = [[i.ixx, i.ixy, i.ixz], [i.ixy, i.iyy, i.iyz], [i.ixz, i.iyz, i.izz]];
-            let minors = [
-                it[0][0],
-                it[0][0] * it[1][1] - it[0][1] * it[1][0],
-                it[0][0] * (it[1][1] * it[2][2] - it[1][2] * it[2][1])
-                    - it[0][1] * (it[1][0] * it[2][2] - it[1][2] * it[2][0])
-                    + it[0][2] * (it[1][0] * it[2][1] - it[1][1] * it[2][0]),
-            ];
-            if !minors.iter().all(|x| x.is_finite() && *x > 0.0) {
-                return Err(LegError::InertiaNotPositiveDefinite { link: l.name.clone(), minors });
-            }
-            let r = rpy_matrix(l.inertial.origin.rpy.0);
-            let inertia = mat_mul(&mat_mul(&r, &it), &transpose(&r));
-            links.push(LinkSpec {
-                name: l.name.clone(),
-                mass_kg: m,
-                com_m: l.inertial.origin.xyz.0,
-                inertia_kg_m2: inertia,
-            });
+            chain.push(ji);
+            link = self.joints[ji].parent;
         }
+        (link, chain)
+    }
 
-        // ---- joints ----
-        let mut joints = Vec::with_capacity(robot.joints.len());
-        let mut joint_idx: HashMap<String, usize> = HashMap::new();
-        let mut parent_joint: Vec<Option<usize>> = vec![None; links.len()];
-        for j in &robot.joints {
-            let kind = match j.joint_type {
-                urdf_rs::JointType::Revolute => JointKind::Revolute,
-                urdf_rs::JointType::Continuous => JointKind::Continuous,
-                urdf_rs::JointType::Prismatic => JointKind::Prismatic,
-                urdf_rs::JointType::Fixed => JointKind::Fixed,
-                ref other => {
-                    return Err(LegError::Unsupported(format!("joint '{}' has unsupported type {other:?}", j.name)))
-                }
-            };
-            let lookup = |n: &str, role: &str| {
-                link_idx.get(n).copied().ok_or_else(|| LegError::UnknownLink {
-                    element: format!("joint '{}' {role}", j.name),
-                    link: n.to_string(),
-                })
-            };
-            let parent = lookup(&j.parent.link, "parent")?;
-            let child = lookup(&j.child.link, "child")?;
-            if parent == child {
-                return Err(LegError::NotATree(format!(
-                    "joint '{}' connects link '{}' to itself",
-                    j.name, j.parent.link
-                )));
-            }
-            let id = joints.len();
-            if joint_idx.insert(j.name.clone(), id).is_some() {
-                return Err(LegError::NotATree(format!("joint '{}' defined twice", j.name)));
-            }
-            if let Some(prev) = parent_joint[child] {
-                return Err(LegError::NotATree(format!(
-                    "link '{}' is the child of two joints ('{}' and '{}'), which closes a kinematic loop; use <loop_closure>",
-                    j.child.link, joints_name(&joints, prev), j.name
-                )));
-            }
-            parent_joint[child] = Some(id);
-            let a = j.axis.xyz.0;
-            let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-            if kind != JointKind::Fixed && !(n.is_finite() && n > 1e-12) {
-                return Err(LegError::Urdf(format!("joint '{}' has a zero axis", j.name)));
-            }
-            let axis = if n > 1e-12 { [a[0] / n, a[1] / n, a[2] / n] } else { [1.0, 0.0, 0.0] };
-            let limits = if matches!(kind, JointKind::Revolute | JointKind::Prismatic) && j.limit.upper > j.limit.lower
-            {
-                Some((j.limit.lower, j.limit.upper))
-            } else {
-                None
-            };
-            joints.push(JointSpec {
-                name: j.name.clone(),
-                kind,
-                parent,
-                child,
-                origin_xyz: j.origin.xyz.0,
-                origin_rpy: j.origin.rpy.0,
-                axis,
-                limits,
-                damping: j.dynamics.as_ref().map(|d| d.damping).unwrap_or(0.0),
-            });
-        }
-
-        // ---- tree check: exactly one root, everything reachable ----
-        let roots: Vec<usize> = (0..links.len()).filter(|&l| parent_joint[l].is_none()).collect();
-        if roots.is_empty() {
-            return Err(LegError::NotATree("no root link (every link has a parent: cycle)".into()));
-        }
-        if roots.len() > 1 {
-            let names: Vec<&str> = roots.iter().map(|&r| links[r].name.as_str()).collect();
-            return Err(LegError::NotATree(format!("several root links: {}", names.join(", "))));
-        }
-        let root = roots[0];
-        let mut children: Vec<Vec<usize>> = vec![Vec::new(); links.len()];
-        for (ji, j) in joints.iter().enumerate() {
-            children[j.parent].push(ji);
-        }
-        let mut topo_joints = Vec::with_capacity(joints.len());
-        let mut stack = vec![root];
-        let mut seen = vec![false; links.len()];
-        seen[root] = true;
-        while let Some(l) = stack.pop() {
-            for &ji in &children[l] {
-                topo_joints.push(ji);
-                let c = joints[ji].child;
-                seen[c] = true;
-                stack.push(c);
-            }
-        }
-        if let Some(l) = (0..links.len()).find(|&l| !seen[l]) {
-            return Err(LegError::NotATree(format!(
-                "link '{}' is not reachable from root '{}' (kinematic cycle)",
-                links[l].name, links[root].name
-            )));
-        }
-
-        // ---- extension elements ----
-        let find_one = |tag: &str| -> Result<roxmltree::Node, LegError> {
-            let mut it = robot_el.children().filter(|n| n.is_element() && n.tag_name().name() == tag);
-            let first = it.next().ok_or_else(|| LegError::Missing { what: format!("<{tag}> element") })?;
-            if it.next().is_some() {
-                return Err(LegError::Unsupported(format!("more than one <{tag}> element")));
-            }
-            Ok(first)
-        };
-        let attr = |n: &roxmltree::Node, a: &str, what: &str| -> Result<String, LegError> {
-            n.attribute(a)
-                .map(str::to_string)
-                .ok_or_else(|| LegError::Missing { what: format!("attribute '{a}' of {what}") })
-        };
-        let lc = find_one("loop_closure")?;
-        let lc_name = attr(&lc, "name", "<loop_closure>")?;
-        let mut ends = Vec::new();
-        for tag in ["link1", "link2"] {
-            let what = format!("loop_closure '{lc_name}' {tag}");
-            let el = lc
-                .children()
-                .find(|n| n.is_element() && n.tag_name().name() == tag)
-                .ok_or_else(|| LegError::Missing { what: format!("<{tag}> of loop_closure '{lc_name}'") })?;
-            let lname = attr(&el, "name", &what)?;
-            let li = *link_idx
-                .get(&lname)
-                .ok_or_else(|| LegError::UnknownLink { element: what.clone(), link: lname.clone() })?;
-            let xyz = match el.attribute("xyz") {
-                Some(t) => parse_vec3(t, &format!("{what} xyz"))?,
-                None => [0.0; 3],
-            };
-            ends.push((li, xyz));
-        }
-        let closure = LoopClosureSpec {
-            name: lc_name.clone(),
-            link1: ends[0].0,
-            anchor1_m: ends[0].1,
-            link2: ends[1].0,
-            anchor2_m: ends[1].1,
-        };
-        let ha = find_one("hydraulic_actuator")?;
-        let ha_name = attr(&ha, "name", "<hydraulic_actuator>")?;
-        let ha_joint = attr(&ha, "joint", &format!("hydraulic_actuator '{ha_name}'"))?;
-        let rod = *joint_idx.get(&ha_joint).ok_or_else(|| LegError::UnknownJoint {
-            element: format!("hydraulic_actuator '{ha_name}'"),
-            joint: ha_joint.clone(),
-        })?;
-        if joints[rod].kind != JointKind::Prismatic {
-            return Err(LegError::WrongJointType {
-                joint: ha_joint,
-                role: format!("joint of hydraulic_actuator '{ha_name}'"),
-                expected: "prismatic".into(),
-                found: joints[rod].kind.name().into(),
-            });
-        }
-        let actuator = ActuatorSpec { name: ha_name.clone(), joint: rod };
-
-        let knee = *joint_idx.get(knee_joint).ok_or_else(|| LegError::UnknownJoint {
-            element: "knee joint parameter".into(),
-            joint: knee_joint.to_string(),
-        })?;
-        if !joints[knee].kind.is_hinge() {
-            return Err(LegError::WrongJointType {
-                joint: knee_joint.into(),
-                role: "knee".into(),
-                expected: "revolute or continuous".into(),
-                found: joints[knee].kind.name().into(),
-            });
-        }
-
-        // ---- planarity ----
-        for j in &joints {
-            let [r, _, y] = j.origin_rpy;
-            if r.abs() > 1e-12 || y.abs() > 1e-12 {
-                return Err(LegError::Unsupported(format!(
-                    "joint '{}' origin rpy has roll/yaw; only pitch (about y) is supported in the sagittal model",
-                    j.name
-                )));
-            }
-            match j.kind {
-                JointKind::Revolute | JointKind::Continuous => {
-                    if j.axis[0].abs() > 1e-9 || j.axis[2].abs() > 1e-9 {
-                        return Err(LegError::Unsupported(format!("joint '{}' axis must be +-y", j.name)));
-                    }
-                }
-                JointKind::Prismatic => {
-                    if j.axis[1].abs() > 1e-9 {
-                        return Err(LegError::Unsupported(format!(
-                            "joint '{}' axis must lie in the x-z plane",
-                            j.name
-                        )));
-                    }
-                }
-                JointKind::Fixed => {}
-            }
-        }
-
-        // ---- loop topology ----
-        let barrel_link = joints[rod].parent;
-        let barrel = parent_joint[barrel_link].ok_or_else(|| {
-            LegError::Unsupported(format!(
-                "actuator joint '{}' parent link '{}' must hang from a barrel pivot hinge",
-                joints[rod].name, links[barrel_link].name
-            ))
-        })?;
-        if !joints[barrel].kind.is_hinge() {
-            return Err(LegError::WrongJointType {
-                joint: joints[barrel].name.clone(),
-                role: format!("barrel pivot of actuator '{ha_name}'"),
-                expected: "revolute or continuous".into(),
-                found: joints[barrel].kind.name().into(),
-            });
-        }
-        for (ji, j) in joints.iter().enumerate() {
-            if j.kind != JointKind::Fixed && ji != knee && ji != barrel && ji != rod {
-                return Err(LegError::Unsupported(format!(
-                    "movable joint '{}' is neither the knee, the barrel pivot nor the actuator",
-                    j.name
-                )));
-            }
-        }
-        // Walk up fixed joints: (ancestor, planar pose of `l` in ancestor, y offset).
-        let rigid_anchor = |mut l: usize| -> (usize, Pose2, f64) {
-            let mut pose = Pose2::IDENTITY;
-            let mut y = 0.0;
-            while let Some(ji) = parent_joint[l] {
-                let j = &joints[ji];
-                if j.kind != JointKind::Fixed {
-                    break;
-                }
-                pose = joint_origin(j).mul(&pose);
-                y += j.origin_xyz[1];
-                l = j.parent;
-            }
-            (l, pose, y)
-        };
-        let (kb, fk, yk) = rigid_anchor(joints[knee].parent);
-        let (bb, fb, yb) = rigid_anchor(joints[barrel].parent);
-        if kb != root || bb != root {
-            return Err(LegError::Unsupported(format!(
-                "knee '{}' and barrel pivot '{}' must both be attached (directly or via fixed joints) to the root link '{}'",
-                joints[knee].name, joints[barrel].name, links[root].name
-            )));
-        }
-        let shank = joints[knee].child;
-        let rod_link = joints[rod].child;
-        let a1 = rigid_anchor(closure.link1);
-        let a2 = rigid_anchor(closure.link2);
-        let p1 = P2::new(closure.anchor1_m[0], closure.anchor1_m[2]);
-        let p2 = P2::new(closure.anchor2_m[0], closure.anchor2_m[2]);
-        let (rod_side, rod_p, rod_y, shank_side, shank_p, shank_y) = if a1.0 == rod_link && a2.0 == shank {
-            (a1, p1, closure.anchor1_m[1], a2, p2, closure.anchor2_m[1])
-        } else if a2.0 == rod_link && a1.0 == shank {
-            (a2, p2, closure.anchor2_m[1], a1, p1, closure.anchor1_m[1])
-        } else {
-            return Err(LegError::Unsupported(format!(
-                "loop_closure '{}' must join the actuator rod '{}' and the knee child '{}' (or links welded to them)",
-                closure.name, links[rod_link].name, links[shank].name
-            )));
-        };
-        let rod_point = rod_side.1.apply(rod_p);
-        let shank_point = shank_side.1.apply(shank_p);
-        let ko = joint_origin(&joints[knee]);
-        let bo = joint_origin(&joints[barrel]);
-        let ro = joint_origin(&joints[rod]);
-        let ra = joints[rod].axis;
-        let y_rod = yb + joints[barrel].origin_xyz[1] + joints[rod].origin_xyz[1] + rod_side.2 + rod_y;
-        let y_shank = yk + joints[knee].origin_xyz[1] + shank_side.2 + shank_y;
-        if (y_rod - y_shank).abs() > 1e-9 {
-            return Err(LegError::Unsupported(format!(
-                "loop_closure '{}' anchors lie at different y ({y_rod} vs {y_shank} m)",
-                closure.name
-            )));
-        }
-        let rod_limits = joints[rod].limits.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-        let knee_range = joints[knee].limits.unwrap_or(DEFAULT_KNEE_RANGE_RAD);
-        let geo = LoopGeometry {
-            knee_origin: fk.mul(&ko),
-            knee_sign: joints[knee].axis[1].signum(),
-            shank_point,
-            barrel_origin: fb.mul(&bo),
-            barrel_sign: joints[barrel].axis[1].signum(),
-            u: ro.apply(rod_point),
-            v: P2::new(ra[0], ra[2]).rot(ro.a),
-            rod_limits,
-            knee_range,
-            rod_point,
-        };
-        let model = LegModel {
-            robot_name: robot.name.clone(),
-            links,
-            joints,
-            root,
-            topo_joints,
-            knee,
-            barrel,
-            rod,
-            closure,
-            actuator,
-            geo,
-        };
-        // ---- reachability over the knee range ----
-        let n = 200;
-        for k in 0..=n {
-            let th = knee_range.0 + (knee_range.1 - knee_range.0) * k as f64 / n as f64;
-            model.loop_solution_checked(th)?;
-        }
-        Ok(model)
+    /// Index of the joint whose child is `link` (None for the root).
+    pub fn parent_joint(&self, link: usize) -> Option<usize> {
+        self.parent_joint[link]
     }
 
     /// Robot name from the URDF.
@@ -683,10 +316,6 @@ impl LegModel {
         }
         poses
     }
-}
-
-fn joints_name(joints: &[JointSpec], i: usize) -> &str {
-    &joints[i].name
 }
 
 /// Planar pose of a joint's `<origin>` (pitch only).

@@ -3,7 +3,7 @@
 use super::{PistonMotion, PistonPredictor, Plant, PlantInputs};
 use crate::error::{Error, Result};
 use crate::leg::{
-    generalized_inertia_at, knee_forward_acceleration, moment_arm_at, Leg, LegError, LegModel, LegSolverParams,
+    generalized_inertia_at, knee_forward_acceleration, moment_arm_at, Leg, LegError, LegSolverParams, LegSpec,
 };
 use crate::record::LegRow;
 use rapier3d_f64::glamx::DVec3;
@@ -51,7 +51,7 @@ impl Default for LegParams {
 
 /// The cuff point (m) in the shank frame, for a cuff on the shank or on a link fixed to it.
 fn cuff_point_in_shank(
-    model: &LegModel,
+    model: &LegSpec,
     leg: &Leg,
     shank: usize,
     cuff: (&str, [f64; 3]),
@@ -79,11 +79,7 @@ fn cuff_point_in_shank(
 /// Check a cuff point against the model before anything is built: the cuff link must be the
 /// shank or a link fixed to it, and the point must not lie on the knee axis. Returns the point
 /// in the shank frame (m).
-pub fn cuff_point_from_model(
-    model: &LegModel,
-    link_name: &str,
-    xyz: [f64; 3],
-) -> std::result::Result<[f64; 3], String> {
+pub fn cuff_point_from_model(model: &LegSpec, link_name: &str, xyz: [f64; 3]) -> std::result::Result<[f64; 3], String> {
     let link = model.link_index(link_name).ok_or_else(|| format!("no link `{link_name}` in the URDF"))?;
     let shank = model.knee_joint().child;
     let (mut cur, mut p) = (link, DVec3::from(xyz));
@@ -124,7 +120,7 @@ pub struct MassTable {
 
 impl MassTable {
     /// Tabulate the effective mass of a leg model over its knee range.
-    pub fn new(model: &LegModel) -> std::result::Result<Self, LegError> {
+    pub fn new(model: &LegSpec) -> std::result::Result<Self, LegError> {
         let (lo, hi) = model.knee_range_rad();
         let n = 400;
         let step = (hi - lo) / n as f64;
@@ -153,7 +149,7 @@ impl MassTable {
 #[derive(Debug, Clone)]
 pub struct LegSetup {
     /// The leg model (shared).
-    pub model: Arc<LegModel>,
+    pub model: Arc<LegSpec>,
     /// Its effective-mass table (shared).
     pub mass: Arc<MassTable>,
     /// Initial state.
@@ -178,7 +174,7 @@ pub struct LegSetup {
 /// cylinder length exactly.
 pub struct LegPlant {
     leg: Leg,
-    model: Arc<LegModel>,
+    model: Arc<LegSpec>,
     mass: Arc<MassTable>,
     length0_m: f64,
     length_m: f64,
@@ -252,7 +248,7 @@ impl LegPlant {
     }
 
     /// The leg model.
-    pub fn model(&self) -> &LegModel {
+    pub fn model(&self) -> &LegSpec {
         &self.model
     }
 

@@ -17,7 +17,7 @@
 use super::{FourierSeries, GaitReference, RefSample};
 use crate::error::{Error, Result};
 use crate::hydraulics::FrictionParams;
-use crate::leg::{knee_inverse_dynamics, moment_arm_at, LegModel};
+use crate::leg::{knee_inverse_dynamics, moment_arm_at, LegSpec};
 
 /// Harmonics of the Fourier fit of the feedforward force over one stride.
 const FF_HARMONICS: usize = 48;
@@ -36,7 +36,7 @@ pub struct KneeForceReference {
 impl KneeForceReference {
     /// Build the feedforward from the leg model. `drive_hip`: include the hip trajectory in
     /// the inverse dynamics (the thigh follows it).
-    pub fn new(gait: GaitReference, model: &LegModel, friction: &FrictionParams, drive_hip: bool) -> Result<Self> {
+    pub fn new(gait: GaitReference, model: &LegSpec, friction: &FrictionParams, drive_hip: bool) -> Result<Self> {
         let stride = gait.stride_s;
         let mut t = Vec::with_capacity(FF_SAMPLES);
         let mut f = Vec::with_capacity(FF_SAMPLES);

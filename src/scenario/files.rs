@@ -3,7 +3,7 @@
 //! its parsed form and the tables built from it.
 
 use crate::error::{Error, Result};
-use crate::leg::LegModel;
+use crate::leg::LegSpec;
 use crate::plant::{MassTable, BUILTIN_URDFS};
 use crate::reference::{GaitCycle, KneeForceReference, BUILTIN_TRIALS};
 use sha2::{Digest, Sha256};
@@ -75,7 +75,7 @@ pub struct InputText {
 #[derive(Debug)]
 pub struct LoadedLeg {
     /// The model.
-    pub model: Arc<LegModel>,
+    pub model: Arc<LegSpec>,
     /// Its effective-mass table.
     pub mass: Arc<MassTable>,
 }
@@ -148,7 +148,7 @@ impl Resources {
         if let Some(l) = legs.get(&key) {
             return Ok(l.clone());
         }
-        let model = LegModel::from_urdf_str(&urdf.text, knee_joint)?;
+        let model = LegSpec::from_urdf_str(&urdf.text, knee_joint)?;
         let mass = MassTable::new(&model)?;
         let l = Arc::new(LoadedLeg { model: Arc::new(model), mass: Arc::new(mass) });
         legs.insert(key, l.clone());

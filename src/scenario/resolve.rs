@@ -7,7 +7,7 @@ use super::{ReferenceKind, Scenario, ScenarioFile};
 use crate::control::{KneePd, NominalModel};
 use crate::error::{Error, Result};
 use crate::hydraulics::Cylinder;
-use crate::leg::LegModel;
+use crate::leg::LegSpec;
 use crate::metrics::{Band, MetricSettings};
 use crate::plant::{LegSetup, LegStart, PlantKind, PlantSetup};
 use crate::reference::{ForceReference, GaitReference, KneeForceReference, RefSample, Sine, BUILTIN_TRIALS};
@@ -170,7 +170,7 @@ impl Ctx<'_> {
 
 /// Refuse a gait whose knee leaves what the leg can do: the cylinder loop must close at every
 /// angle of the trajectory, and the angles must lie within 20 deg of the URDF's knee range.
-fn check_gait_in_leg_range(src: &str, gait: &GaitReference, model: &LegModel) -> Result<()> {
+fn check_gait_in_leg_range(src: &str, gait: &GaitReference, model: &LegSpec) -> Result<()> {
     let (lo, hi) = model.knee_range_rad();
     let margin = 20f64.to_radians();
     for i in 0..1000 {
@@ -199,7 +199,7 @@ fn check_gait_in_leg_range(src: &str, gait: &GaitReference, model: &LegModel) ->
 
 /// Initial knee state: at rest at `leg.initial_knee_deg`; else on the gait trajectory;
 /// else at rest at 30 deg. Returns the start and whether it is on the trajectory.
-fn leg_start(s: &Scenario, model: &LegModel, reference: &ForceReference) -> Result<(LegStart, bool)> {
+fn leg_start(s: &Scenario, model: &LegSpec, reference: &ForceReference) -> Result<(LegStart, bool)> {
     let f = &s.file;
     let on_trajectory = f.leg.initial_knee_deg.is_none() && reference.knee_at(0.0).is_some();
     let (q0, qd0) = match (f.leg.initial_knee_deg, reference.knee_at(0.0)) {

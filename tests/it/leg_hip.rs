@@ -24,7 +24,7 @@ fn states() -> Vec<(Hip3, Hip3)> {
 #[test]
 fn inverse_and_forward_dynamics_are_consistent_and_reduce_to_the_fixed_hip_model() {
     for urdf in URDFS {
-        let model = LegModel::from_urdf_file(manifest(urdf), "knee").unwrap();
+        let model = LegSpec::from_urdf_file(manifest(urdf), "knee").unwrap();
         for (hip, knee) in states() {
             let tau = knee_inverse_dynamics(&model, hip, knee).unwrap();
             let acc = knee_forward_acceleration(&model, hip, knee.0, knee.1, tau).unwrap();
@@ -56,7 +56,7 @@ fn inverse_and_forward_dynamics_are_consistent_and_reduce_to_the_fixed_hip_model
 fn knee_and_hip_inverse_dynamics_match_the_independent_reference() {
     for urdf in URDFS {
         let path = manifest(urdf);
-        let model = LegModel::from_urdf_file(&path, "knee").unwrap();
+        let model = LegSpec::from_urdf_file(&path, "knee").unwrap();
         let r = RefModel::from_file(&path);
         let mut worst: f64 = 0.0;
         for (hip, knee) in states() {
@@ -81,7 +81,7 @@ fn hip_motion(t: f64) -> (f64, f64, f64) {
 /// Runs the Rapier leg with the driven hip and a passive knee; returns (max knee error vs the
 /// reference samples [rad], max loop gap [m], max hip angle error [rad]).
 fn driven_run(
-    model: &LegModel,
+    model: &LegSpec,
     reference: &[(f64, f64)],
     knee0: f64,
     dt: f64,
@@ -109,7 +109,7 @@ fn driven_run(
 fn rapier_with_a_driven_hip_follows_the_reference_knee_trajectory() {
     for urdf in URDFS {
         let path = manifest(urdf);
-        let model = LegModel::from_urdf_file(&path, "knee").unwrap();
+        let model = LegSpec::from_urdf_file(&path, "knee").unwrap();
         let r = RefModel::from_file(&path);
         let knee0 = 20f64.to_radians();
         let t_end = 3.0;

@@ -5,7 +5,7 @@ use exoleg::leg::*;
 
 fn passive_check(urdf: &str) {
     let path = manifest(urdf);
-    let model = LegModel::from_urdf_file(&path, "knee").unwrap();
+    let model = LegSpec::from_urdf_file(&path, "knee").unwrap();
     let r = RefModel::from_file(&path);
     let th0 = 30f64.to_radians();
     let dt = 1e-3;

@@ -6,7 +6,7 @@ use crate::common::leg_reference::*;
 use exoleg::leg::*;
 
 /// Knee velocity after one step from rest at `th` with actuator force `f`.
-fn one_step_vel(model: &LegModel, th: f64, f: f64) -> f64 {
+fn one_step_vel(model: &LegSpec, th: f64, f: f64) -> f64 {
     let mut leg = Leg::new(model, th, 1e-3).unwrap();
     leg.step(f, None);
     leg.knee_velocity_rad_s()
@@ -14,7 +14,7 @@ fn one_step_vel(model: &LegModel, th: f64, f: f64) -> f64 {
 
 fn statics_check(urdf: &str) {
     let path = manifest(urdf);
-    let model = LegModel::from_urdf_file(&path, "knee").unwrap();
+    let model = LegSpec::from_urdf_file(&path, "knee").unwrap();
     let r = RefModel::from_file(&path);
     for deg in [0.0f64, 30.0, 60.0, 90.0] {
         let th = deg.to_radians();
@@ -65,7 +65,7 @@ fn statics_second_urdf() {
 #[test]
 fn cuff_force_balanced_by_actuator() {
     let path = manifest("urdf/exo_leg.urdf");
-    let model = LegModel::from_urdf_file(&path, "knee").unwrap();
+    let model = LegSpec::from_urdf_file(&path, "knee").unwrap();
     let r = RefModel::from_file(&path);
     let th = 45f64.to_radians();
     // 50 N horizontal push (+x) at a cuff 0.25 m below the knee on the shank axis.

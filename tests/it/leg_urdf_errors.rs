@@ -6,8 +6,8 @@ fn good() -> String {
     std::fs::read_to_string(manifest("urdf/exo_leg.urdf")).unwrap()
 }
 
-fn load(text: &str) -> Result<LegModel, LegError> {
-    LegModel::from_urdf_str(text, "knee")
+fn load(text: &str) -> Result<LegSpec, LegError> {
+    LegSpec::from_urdf_str(text, "knee")
 }
 
 fn replaced(from: &str, to: &str) -> String {
@@ -18,7 +18,7 @@ fn replaced(from: &str, to: &str) -> String {
 
 #[test]
 fn good_file_loads() {
-    let m = LegModel::from_urdf_file(manifest("urdf/exo_leg.urdf"), "knee").unwrap();
+    let m = LegSpec::from_urdf_file(manifest("urdf/exo_leg.urdf"), "knee").unwrap();
     assert_eq!(m.links().len(), 5);
     assert_eq!(m.actuator().name, "knee_cylinder");
     assert_eq!(m.loop_closure().name, "rod_end");
@@ -27,7 +27,7 @@ fn good_file_loads() {
 
 #[test]
 fn missing_file() {
-    let e = LegModel::from_urdf_file("/nonexistent/leg.urdf", "knee").unwrap_err();
+    let e = LegSpec::from_urdf_file("/nonexistent/leg.urdf", "knee").unwrap_err();
     assert!(matches!(e, LegError::Io { .. }), "{e}");
     println!("{e}");
 }
@@ -74,18 +74,78 @@ fn actuator_not_prismatic() {
 
 #[test]
 fn unknown_knee_parameter() {
-    let e = LegModel::from_urdf_str(&good(), "left_knee").unwrap_err();
+    let e = LegSpec::from_urdf_str(&good(), "left_knee").unwrap_err();
     assert!(matches!(&e, LegError::UnknownJoint { joint, .. } if joint == "left_knee"), "{e}");
-    let e = LegModel::from_urdf_str(&good(), "rod_slide").unwrap_err();
+    let e = LegSpec::from_urdf_str(&good(), "rod_slide").unwrap_err();
     assert!(matches!(&e, LegError::WrongJointType { .. }), "{e}");
 }
 
 #[test]
-fn zero_and_negative_mass() {
-    for m in ["0", "-0.6"] {
-        let e = load(&replaced(r#"<mass value="0.6"/>"#, &format!(r#"<mass value="{m}"/>"#))).unwrap_err();
-        assert!(matches!(&e, LegError::NonPositiveMass { link, .. } if link == "barrel"), "{e}");
-        println!("{e}");
+fn negative_mass_and_a_moving_body_without_mass() {
+    let e = load(&replaced(r#"<mass value="0.6"/>"#, r#"<mass value="-0.6"/>"#)).unwrap_err();
+    assert!(matches!(&e, LegError::NonPositiveMass { link, .. } if link == "barrel"), "{e}");
+    // Mass 0 is legal for a link, but the barrel moves on its own hinge: its body needs mass.
+    let e = load(&replaced(r#"<mass value="0.6"/>"#, r#"<mass value="0"/>"#)).unwrap_err();
+    assert!(matches!(&e, LegError::MovingBodyWithoutMass { link, .. } if link == "barrel"), "{e}");
+    assert!(e.to_string().contains("barrel") && e.to_string().contains("no mass"), "{e}");
+    // A point mass (zero inertia tensor) on a moving joint has no rotational inertia.
+    let point = replaced(
+        r#"<inertia ixx="0.00303375" ixy="0" ixz="0" iyy="0.00303375" iyz="0" izz="0.0003075"/>"#,
+        r#"<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>"#,
+    );
+    let e = load(&point).unwrap_err();
+    assert!(matches!(&e, LegError::MovingBodyWithoutInertia { link, .. } if link == "barrel"), "{e}");
+}
+
+/// Legal URDF the loader used to refuse (issue 10): a link with no `<inertial>` (mass 0 by the
+/// spec), a massless frame link and a point mass on fixed joints. They merge into the shank's
+/// body, so the leg's dynamics are those of the merged masses.
+#[test]
+fn frames_without_inertial_and_point_masses_on_fixed_joints_are_merged() {
+    let extra = r#"<link name="imu_frame"/>
+  <link name="strap_mass"><inertial><origin xyz="0.02 0 -0.1"/><mass value="0.5"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <joint name="imu" type="fixed"><parent link="shank"/><child link="imu_frame"/><origin xyz="0 0 -0.3"/></joint>
+  <joint name="strap" type="fixed"><parent link="imu_frame"/><child link="strap_mass"/><origin xyz="0 0 0"/></joint>
+  <loop_closure"#;
+    let m = load(&replaced("<loop_closure", extra)).expect("legal URDF");
+    assert_eq!(m.links().len(), 7);
+    // The point mass adds 0.5 kg at 0.4 m below the knee: the generalized inertia grows by
+    // m r^2 at full extension (r = |(0.02, -0.4)| in the shank frame).
+    let base = load(&good()).unwrap();
+    let (m0, m1) = (generalized_inertia_at(&base, 0.0).unwrap(), generalized_inertia_at(&m, 0.0).unwrap());
+    let expected = 0.5 * (0.02f64 * 0.02 + 0.4 * 0.4);
+    assert!((m1 - m0 - expected).abs() < 1e-7, "inertia grew by {} vs {expected}", m1 - m0);
+    // And Rapier builds and steps it.
+    let mut leg = Leg::new(&m, 0.5, 1e-3).unwrap();
+    leg.step(0.0, None);
+    assert!(leg.knee_angle_rad().is_finite());
+}
+
+/// Non-finite, absurd, reversed or NaN values are refused, naming the element.
+#[test]
+fn non_finite_absurd_and_reversed_values_name_the_element() {
+    let cases: [(&str, &str, &[&str]); 7] = [
+        (r#"<mass value="3.2475"/>"#, r#"<mass value="nan"/>"#, &["shank", "mass", "finite"]),
+        (r#"<mass value="3.2475"/>"#, r#"<mass value="1e9"/>"#, &["shank", "mass", "exceeds"]),
+        (r#"iyy="0.0401872""#, r#"iyy="inf""#, &["shank", "iyy"]),
+        (
+            r#"<origin xyz="0 0 -0.424383" rpy="0 0 0"/>"#,
+            r#"<origin xyz="0 0 NaN" rpy="0 0 0"/>"#,
+            &["knee", "origin xyz z"],
+        ),
+        (
+            r#"<origin xyz="0 0 -0.424383" rpy="0 0 0"/>"#,
+            r#"<origin xyz="0 0 -4e5" rpy="0 0 0"/>"#,
+            &["knee", "exceeds"],
+        ),
+        (r#"lower="0" upper="1.74533""#, r#"lower="1.74533" upper="0""#, &["knee", "lower", "above upper"]),
+        (r#"lower="0" upper="1.74533""#, r#"lower="nan" upper="1.74533""#, &["knee", "limit lower"]),
+    ];
+    for (from, to, needles) in cases {
+        let e = load(&replaced(from, to)).unwrap_err().to_string();
+        for n in needles {
+            assert!(e.contains(n), "{to}: {n:?} not in {e:?}");
+        }
     }
 }
 
@@ -150,7 +210,7 @@ fn mounting_point_out_of_stroke() {
 
 #[test]
 fn no_solution_at_initial_angle() {
-    let m = LegModel::from_urdf_file(manifest("urdf/exo_leg.urdf"), "knee").unwrap();
+    let m = LegSpec::from_urdf_file(manifest("urdf/exo_leg.urdf"), "knee").unwrap();
     // 150 deg flexion would need a negative rod extension (below the stroke).
     let e = Leg::new(&m, 150f64.to_radians(), 1e-3).err().unwrap();
     assert!(matches!(e, LegError::Unreachable { .. }), "{e}");

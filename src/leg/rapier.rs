@@ -13,14 +13,15 @@
 //! back as d'Alembert wrenches ([`HipCoupling::InertialCompensation`]).
 
 use rapier3d_f64::glamx::{DQuat, DVec3, EulerRot};
-use rapier3d_f64::math::{Pose, Vector};
+pub use rapier3d_f64::math::Pose;
+use rapier3d_f64::math::Vector;
 use rapier3d_f64::prelude::{
     GenericJoint, GenericJointBuilder, ImpulseJointHandle, IntegrationParameters, JointAxesMask, MassProperties,
-    MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SphericalJointBuilder,
+    Multibody, MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SphericalJointBuilder,
 };
 
 use super::error::LegError;
-use super::model::{JointKind, JointSpec, LegModel, GRAVITY_M_S2};
+use super::model::{JointKind, JointSpec, LegSpec, GRAVITY_M_S2};
 
 /// Solver settings of [`Leg`].
 #[derive(Clone, Copy, Debug)]
@@ -65,11 +66,11 @@ struct HipState {
     coupling: HipCoupling,
 }
 
-/// A running simulation of a [`LegModel`]. Owns all Rapier sets and the pipeline.
+/// A running simulation of a [`LegSpec`]. Owns all Rapier sets and the pipeline.
 pub struct Leg {
-    model: LegModel,
+    model: LegSpec,
     world: PhysicsWorld,
-    /// Rapier body carrying each URDF link (same indexing as `LegModel::links`). Links welded
+    /// Rapier body carrying each URDF link (same indexing as `LegSpec::links`). Links welded
     /// by fixed joints share their parent's body.
     link_body: Vec<RigidBodyHandle>,
     /// Pose of each URDF link in the frame of its Rapier body (identity unless welded).
@@ -115,6 +116,196 @@ fn to_generic(j: &JointSpec) -> GenericJoint {
     GenericJointBuilder::new(mask).local_frame1(origin * align).local_frame2(align).contacts_enabled(false).build()
 }
 
+/// A Rapier world with the leg's gravity and solver settings.
+fn new_world(dt_s: f64, params: LegSolverParams) -> PhysicsWorld {
+    let mut world = PhysicsWorld::new();
+    world.gravity = Vector::new(0.0, 0.0, -GRAVITY_M_S2);
+    world.integration_parameters = IntegrationParameters {
+        dt: dt_s,
+        num_solver_iterations: params.solver_iterations,
+        num_internal_pgs_iterations: params.pgs_iterations,
+        ..IntegrationParameters::default()
+    };
+    world
+}
+
+/// World poses of every link at joint coordinates `q` (3D forward kinematics), the thigh
+/// turned by the hip flexion `hip_rad` when the hip is driven.
+fn initial_poses(model: &LegSpec, q: &[f64], hip_rad: Option<f64>) -> Vec<Pose> {
+    let mut poses = vec![Pose::IDENTITY; model.links.len()];
+    if let Some(h0) = hip_rad {
+        poses[model.root] = Pose::from_rotation(DQuat::from_axis_angle(-DVec3::Y, h0));
+    }
+    for &ji in &model.topo_joints {
+        let j = &model.joints[ji];
+        let axis = DVec3::from(j.axis);
+        let motion = match j.kind {
+            JointKind::Revolute | JointKind::Continuous => Pose::from_rotation(DQuat::from_axis_angle(axis, q[ji])),
+            JointKind::Prismatic => Pose::from_translation(axis * q[ji]),
+            JointKind::Fixed => Pose::IDENTITY,
+        };
+        poses[j.child] = poses[j.parent] * pose3(j.origin_xyz, j.origin_rpy) * motion;
+    }
+    poses
+}
+
+/// Links welded into the body of their fixed-chain ancestor (fewer multibody links = faster):
+/// `anchor[l]` is the link whose Rapier body carries link `l`, `offset[l]` the pose of `l` in
+/// that body's frame.
+struct Welds {
+    anchor: Vec<usize>,
+    offset: Vec<Pose>,
+}
+
+impl Welds {
+    fn new(model: &LegSpec) -> Self {
+        let (anchor, offset) = (0..model.links.len())
+            .map(|l| {
+                let (a, chain) = model.fixed_chain(l);
+                let off = chain.iter().rev().fold(Pose::IDENTITY, |p, &ji| p * joint_origin_pose(&model.joints[ji]));
+                (a, off)
+            })
+            .unzip();
+        Self { anchor, offset }
+    }
+}
+
+/// One Rapier body per anchor link, carrying the merged mass properties of its welded links.
+/// Returns the body of every link and the distinct bodies.
+fn insert_bodies(
+    world: &mut PhysicsWorld,
+    model: &LegSpec,
+    welds: &Welds,
+    poses: &[Pose],
+    hip_driven: bool,
+) -> (Vec<RigidBodyHandle>, Vec<RigidBodyHandle>) {
+    let n = model.links.len();
+    let mut handle_of_anchor: Vec<Option<RigidBodyHandle>> = vec![None; n];
+    let mut bodies = Vec::new();
+    for a in (0..n).filter(|&a| welds.anchor[a] == a) {
+        let mut mp = MassProperties::default();
+        for (i, l) in model.links.iter().enumerate().filter(|(i, _)| welds.anchor[*i] == a) {
+            let inertia = rapier3d_f64::math::Matrix::from_cols_array_2d(&l.inertia_kg_m2);
+            mp += MassProperties::with_inertia_matrix(DVec3::from(l.com_m), l.mass_kg, inertia)
+                .transform_by(&welds.offset[i]);
+        }
+        let b = if a == model.root && !hip_driven { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
+        let h = world.bodies.insert(b.pose(poses[a]).additional_mass_properties(mp).can_sleep(false).build());
+        handle_of_anchor[a] = Some(h);
+        bodies.push(h);
+    }
+    let link_body = (0..n).filter_map(|l| handle_of_anchor[welds.anchor[l]]).collect();
+    (link_body, bodies)
+}
+
+/// A massless fixed pelvis at the hip centre and a kinematic hip hinge whose joint X axis is
+/// the world -y axis, so its coordinate is hip flexion.
+fn insert_hip(world: &mut PhysicsWorld, thigh: RigidBodyHandle) -> Result<(), LegError> {
+    let pelvis = world.bodies.insert(RigidBodyBuilder::fixed().can_sleep(false).build());
+    let align = Pose::from_rotation(DQuat::from_rotation_arc(DVec3::X, -DVec3::Y));
+    let gj = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
+        .local_frame1(align)
+        .local_frame2(align)
+        .contacts_enabled(false)
+        .build();
+    world
+        .multibody_joints
+        .insert_kinematic(pelvis, thigh, gj, true)
+        .map(|_| ())
+        .ok_or_else(|| LegError::Unsupported("Rapier refused the kinematic hip joint".into()))
+}
+
+/// The movable URDF joints as multibody joints between the welded bodies.
+fn insert_joints(
+    world: &mut PhysicsWorld,
+    model: &LegSpec,
+    welds: &Welds,
+    link_body: &[RigidBodyHandle],
+) -> Result<(), LegError> {
+    for &ji in &model.topo_joints {
+        let j = &model.joints[ji];
+        if j.kind == JointKind::Fixed {
+            continue;
+        }
+        let mut gj = to_generic(j);
+        let f1 = welds.offset[j.parent] * gj.local_frame1;
+        gj.set_local_frame1(f1);
+        world
+            .multibody_joints
+            .insert(link_body[j.parent], link_body[j.child], gj, true)
+            .ok_or_else(|| LegError::Unsupported(format!("Rapier refused multibody joint '{}'", j.name)))?;
+    }
+    Ok(())
+}
+
+/// Multibody link ids of the bodies the leg reads.
+struct LinkIds {
+    mb: MultibodyIndex,
+    knee: usize,
+    barrel: usize,
+    rod: usize,
+    hip: Option<usize>,
+}
+
+impl LinkIds {
+    fn find(world: &PhysicsWorld, model: &LegSpec, link_body: &[RigidBodyHandle], hip: bool) -> Result<Self, LegError> {
+        let missing = || LegError::Unsupported("a moving link is not part of the multibody".into());
+        let id = |h: RigidBodyHandle| world.multibody_joints.rigid_body_link(h).map(|l| (l.multibody, l.id));
+        let (mb, root) = id(link_body[model.root]).ok_or_else(missing)?;
+        let child = |ji: usize| id(link_body[model.joints[ji].child]).map(|l| l.1).ok_or_else(missing);
+        Ok(Self {
+            mb,
+            knee: child(model.knee)?,
+            barrel: child(model.barrel)?,
+            rod: child(model.rod)?,
+            hip: hip.then_some(root),
+        })
+    }
+}
+
+/// Displace the multibody joints (which start at 0) to the loop solution `q`, set the URDF's
+/// damping (not Rapier's default 0.1 N m s/rad) and the initial velocities (the hip's, if
+/// driven).
+fn set_initial_state(
+    world: &mut PhysicsWorld,
+    model: &LegSpec,
+    ids: &LinkIds,
+    link_body: &[RigidBodyHandle],
+    q: &[f64],
+    hip: Option<(f64, f64)>,
+) {
+    let joint_links: Vec<(usize, usize)> = model
+        .topo_joints
+        .iter()
+        .filter(|&&ji| model.joints[ji].kind != JointKind::Fixed)
+        .filter_map(|&ji| world.multibody_joints.rigid_body_link(link_body[model.joints[ji].child]).map(|l| (ji, l.id)))
+        .collect();
+    let Some(multibody) = world.multibody_joints.get_multibody_mut(ids.mb) else { return };
+    // Resolves the fixed root (removes its 6 free DoFs) so that assembly ids are final.
+    multibody.forward_kinematics(&world.bodies, true);
+    let ndofs = multibody.ndofs();
+    let (mut disp, mut damping) = (vec![0.0; ndofs], vec![0.0; ndofs]);
+    let aid = |mb: &Multibody, lid: usize| mb.link(lid).map(|l| l.assembly_id());
+    for &(ji, lid) in &joint_links {
+        if let Some(a) = aid(multibody, lid) {
+            disp[a] = q[ji];
+            damping[a] = model.joints[ji].damping;
+        }
+    }
+    let hip_aid = ids.hip.and_then(|l| aid(multibody, l));
+    if let (Some(a), Some((h0, _))) = (hip_aid, hip) {
+        disp[a] = h0;
+    }
+    multibody.apply_displacements(&disp);
+    multibody.damping_mut().copy_from_slice(&damping);
+    multibody.generalized_velocity_mut().fill(0.0);
+    if let (Some(a), Some((_, v0))) = (hip_aid, hip) {
+        multibody.generalized_velocity_mut()[a] = v0;
+    }
+    multibody.forward_kinematics(&world.bodies, false);
+    multibody.update_rigid_bodies(&mut world.bodies, true);
+}
+
 /// Inertia tensor (kg m^2, link frame) times an angular velocity or acceleration.
 fn inertia_times(i: &[[f64; 3]; 3], w: DVec3) -> DVec3 {
     DVec3::new(
@@ -136,13 +327,13 @@ impl Leg {
     /// Builds the simulation at a knee angle (rad, flexion positive) with time step `dt_s` (s),
     /// at rest. The barrel angle and the rod extension are solved from the loop geometry so that
     /// the closure gap is zero at t = 0.
-    pub fn new(model: &LegModel, initial_knee_rad: f64, dt_s: f64) -> Result<Self, LegError> {
+    pub fn new(model: &LegSpec, initial_knee_rad: f64, dt_s: f64) -> Result<Self, LegError> {
         Self::with_params(model, initial_knee_rad, dt_s, LegSolverParams::default())
     }
 
     /// Like [`Leg::new`] with explicit solver settings.
     pub fn with_params(
-        model: &LegModel,
+        model: &LegSpec,
         initial_knee_rad: f64,
         dt_s: f64,
         params: LegSolverParams,
@@ -158,7 +349,7 @@ impl Leg {
     /// (rad/s; the whole leg then turns rigidly). Drive the hip with [`Leg::set_hip_target`] or
     /// [`Leg::set_hip_velocity`] before each [`Leg::step`]; the hip keeps its velocity otherwise.
     pub fn with_hip(
-        model: &LegModel,
+        model: &LegSpec,
         initial_knee_rad: f64,
         initial_hip_rad: f64,
         initial_hip_vel_rad_s: f64,
@@ -172,7 +363,7 @@ impl Leg {
     }
 
     fn build(
-        model: &LegModel,
+        model: &LegSpec,
         initial_knee_rad: f64,
         hip: Option<(f64, f64)>,
         dt_s: f64,
@@ -184,156 +375,26 @@ impl Leg {
         if !initial_knee_rad.is_finite() {
             return Err(LegError::InvalidArgument("initial knee angle is not finite".into()));
         }
-        let sol = model.loop_solution_checked(initial_knee_rad)?;
-        let q = model.joint_coords(&sol);
-
-        let mut world = PhysicsWorld::new();
-        world.gravity = Vector::new(0.0, 0.0, -GRAVITY_M_S2);
-        world.integration_parameters = IntegrationParameters {
-            dt: dt_s,
-            num_solver_iterations: params.solver_iterations,
-            num_internal_pgs_iterations: params.pgs_iterations,
-            ..IntegrationParameters::default()
-        };
-
-        // 3D forward kinematics for the initial body poses.
-        let mut poses = vec![Pose::IDENTITY; model.links.len()];
-        if let Some((h0, _)) = hip {
-            poses[model.root] = Pose::from_rotation(DQuat::from_axis_angle(-DVec3::Y, h0));
-        }
-        for &ji in &model.topo_joints {
-            let j = &model.joints[ji];
-            let axis = DVec3::from(j.axis);
-            let motion = match j.kind {
-                JointKind::Revolute | JointKind::Continuous => Pose::from_rotation(DQuat::from_axis_angle(axis, q[ji])),
-                JointKind::Prismatic => Pose::from_translation(axis * q[ji]),
-                JointKind::Fixed => Pose::IDENTITY,
-            };
-            poses[j.child] = poses[j.parent] * pose3(j.origin_xyz, j.origin_rpy) * motion;
-        }
-
-        // Weld fixed-joint children into their parent body (fewer multibody links = faster):
-        // `anchor[l]` is the link whose Rapier body carries link `l`, `offset[l]` the pose of `l`
-        // in that body's frame.
-        let n = model.links.len();
-        let mut anchor: Vec<usize> = (0..n).collect();
-        let mut offset = vec![Pose::IDENTITY; n];
-        for &ji in &model.topo_joints {
-            let j = &model.joints[ji];
-            if j.kind == JointKind::Fixed {
-                anchor[j.child] = anchor[j.parent];
-                offset[j.child] = offset[j.parent] * pose3(j.origin_xyz, j.origin_rpy);
-            }
-        }
-        let mut handle_of_anchor: Vec<Option<RigidBodyHandle>> = vec![None; n];
-        let mut bodies = Vec::new();
-        for a in 0..n {
-            if anchor[a] != a {
-                continue;
-            }
-            let mut mp = MassProperties::default();
-            for (i, l) in model.links.iter().enumerate() {
-                if anchor[i] == a {
-                    let inertia = rapier3d_f64::math::Matrix::from_cols_array_2d(&l.inertia_kg_m2);
-                    mp += MassProperties::with_inertia_matrix(DVec3::from(l.com_m), l.mass_kg, inertia)
-                        .transform_by(&offset[i]);
-                }
-            }
-            let b =
-                if a == model.root && hip.is_none() { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
-            let rb = b.pose(poses[a]).additional_mass_properties(mp).can_sleep(false).build();
-            let h = world.bodies.insert(rb);
-            handle_of_anchor[a] = Some(h);
-            bodies.push(h);
-        }
-        let link_body: Vec<RigidBodyHandle> = (0..n).map(|l| handle_of_anchor[anchor[l]].unwrap()).collect();
-
+        let q = model.joint_coords(&model.loop_solution_checked(initial_knee_rad)?);
+        let mut world = new_world(dt_s, params);
+        let welds = Welds::new(model);
+        let poses = initial_poses(model, &q, hip.map(|h| h.0));
+        let (link_body, bodies) = insert_bodies(&mut world, model, &welds, &poses, hip.is_some());
         if hip.is_some() {
-            // Massless fixed pelvis at the hip centre; the hip is a kinematic hinge whose joint
-            // X axis is the world -y axis, so its coordinate is hip flexion.
-            let pelvis = world.bodies.insert(RigidBodyBuilder::fixed().can_sleep(false).build());
-            let align = Pose::from_rotation(DQuat::from_rotation_arc(DVec3::X, -DVec3::Y));
-            let gj = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
-                .local_frame1(align)
-                .local_frame2(align)
-                .contacts_enabled(false)
-                .build();
-            world
-                .multibody_joints
-                .insert_kinematic(pelvis, link_body[model.root], gj, true)
-                .ok_or_else(|| LegError::Unsupported("Rapier refused the kinematic hip joint".into()))?;
+            insert_hip(&mut world, link_body[model.root])?;
         }
-
-        for &ji in &model.topo_joints {
-            let j = &model.joints[ji];
-            if j.kind == JointKind::Fixed {
-                continue;
-            }
-            let mut gj = to_generic(j);
-            let f1 = offset[j.parent] * gj.local_frame1;
-            gj.set_local_frame1(f1);
-            world
-                .multibody_joints
-                .insert(link_body[j.parent], link_body[j.child], gj, true)
-                .ok_or_else(|| LegError::Unsupported(format!("Rapier refused multibody joint '{}'", j.name)))?;
-        }
-
+        insert_joints(&mut world, model, &welds, &link_body)?;
         let c = &model.closure;
-        let anchor1 = DVec3::from(c.anchor1_m);
-        let anchor2 = DVec3::from(c.anchor2_m);
+        let (anchor1, anchor2) = (DVec3::from(c.anchor1_m), DVec3::from(c.anchor2_m));
         let sj = SphericalJointBuilder::new()
-            .local_anchor1(offset[c.link1] * anchor1)
-            .local_anchor2(offset[c.link2] * anchor2)
+            .local_anchor1(welds.offset[c.link1] * anchor1)
+            .local_anchor2(welds.offset[c.link2] * anchor2)
             .contacts_enabled(false);
         let closure = world.impulse_joints.insert(link_body[c.link1], link_body[c.link2], sj, true);
         let rod_child = model.joints[model.rod].child;
-        let rod_anchor_is_1 = anchor[c.link1] == anchor[rod_child];
-
-        let link_id = |world: &PhysicsWorld, h: RigidBodyHandle| {
-            world.multibody_joints.rigid_body_link(h).map(|l| (l.multibody, l.id))
-        };
-        let (mb, _) = link_id(&world, link_body[model.root])
-            .ok_or_else(|| LegError::Unsupported("root is not part of a multibody".into()))?;
-        let knee_link = link_id(&world, link_body[model.joints[model.knee].child]).unwrap().1;
-        let barrel_link = link_id(&world, link_body[model.joints[model.barrel].child]).unwrap().1;
-        let rod_link = link_id(&world, link_body[rod_child]).unwrap().1;
-        let hip_link = hip.map(|_| link_id(&world, link_body[model.root]).unwrap().1);
-
-        let joint_links: Vec<(usize, usize)> = model
-            .topo_joints
-            .iter()
-            .filter(|&&ji| model.joints[ji].kind != JointKind::Fixed)
-            .map(|&ji| (ji, link_id(&world, link_body[model.joints[ji].child]).unwrap().1))
-            .collect();
-        {
-            let multibody = world.multibody_joints.get_multibody_mut(mb).unwrap();
-            // Resolves the fixed root (removes its 6 free DoFs) so that assembly ids are final.
-            multibody.forward_kinematics(&world.bodies, true);
-            let ndofs = multibody.ndofs();
-            let mut disp = vec![0.0; ndofs];
-            let mut damping = vec![0.0; ndofs];
-            for &(ji, lid) in &joint_links {
-                let j = &model.joints[ji];
-                let aid = multibody.link(lid).unwrap().assembly_id();
-                disp[aid] = q[ji];
-                damping[aid] = j.damping;
-            }
-            let hip_aid = hip_link.map(|l| multibody.link(l).unwrap().assembly_id());
-            if let (Some(aid), Some((h0, _))) = (hip_aid, hip) {
-                disp[aid] = h0;
-            }
-            // Multibody joints start at coordinate 0: displace them to the loop solution.
-            multibody.apply_displacements(&disp);
-            // Remove Rapier's default 0.1 N m s/rad hinge damping; use the URDF's instead.
-            multibody.damping_mut().copy_from_slice(&damping);
-            multibody.generalized_velocity_mut().fill(0.0);
-            if let (Some(aid), Some((_, v0))) = (hip_aid, hip) {
-                multibody.generalized_velocity_mut()[aid] = v0;
-            }
-            multibody.forward_kinematics(&world.bodies, false);
-            multibody.update_rigid_bodies(&mut world.bodies, true);
-        }
-
+        let rod_anchor_is_1 = welds.anchor[c.link1] == welds.anchor[rod_child];
+        let ids = LinkIds::find(&world, model, &link_body, hip.is_some())?;
+        set_initial_state(&mut world, model, &ids, &link_body, &q, hip);
         // Rapier applies the user-provided mass properties lazily, in the first pipeline step
         // (before it, `mass() == 0` and `world_com` is the body origin, which would give
         // `add_force_at_point` a wrong lever arm). A zero-dt step applies these user changes
@@ -341,23 +402,22 @@ impl Leg {
         world.integration_parameters.dt = 0.0;
         world.step();
         world.integration_parameters.dt = dt_s;
-        let hip = hip_link.zip(hip).map(|(link, (_, v0))| HipState {
+        let hip = ids.hip.zip(hip).map(|(link, (_, v0))| HipState {
             link,
             vel: v0,
             accel: 0.0,
             coupling: HipCoupling::default(),
         });
-
-        let leg = Leg {
+        Ok(Leg {
             model: model.clone(),
             world,
             link_body,
-            link_offset: offset,
+            link_offset: welds.offset,
             bodies,
-            mb,
-            knee_link,
-            rod_link,
-            barrel_link,
+            mb: ids.mb,
+            knee_link: ids.knee,
+            rod_link: ids.rod,
+            barrel_link: ids.barrel,
             closure,
             anchor1,
             anchor2,
@@ -367,8 +427,7 @@ impl Leg {
             last_dl: 0.0,
             last_dknee: 0.0,
             hip,
-        };
-        Ok(leg)
+        })
     }
 
     /// Set the knee rate (rad/s) and the barrel and rod rates the loop implies (from the
@@ -395,7 +454,7 @@ impl Leg {
     }
 
     /// The model this simulation was built from.
-    pub fn model(&self) -> &LegModel {
+    pub fn model(&self) -> &LegSpec {
         &self.model
     }
     /// Simulated time since construction, s.
@@ -531,7 +590,7 @@ impl Leg {
         (self.world_point(c.link1, self.anchor1) - self.world_point(c.link2, self.anchor2)).length()
     }
 
-    /// World pose of a link (by index into `LegModel::links`).
+    /// World pose of a link (by index into `LegSpec::links`).
     pub fn link_pose(&self, link: usize) -> Pose {
         *self.world.bodies[self.link_body[link]].position() * self.link_offset[link]
     }
