@@ -32,6 +32,15 @@ pub fn moment_arm_at(model: &LegSpec, knee_rad: f64) -> f64 {
     model.geo.knee_sign * a * b * gamma.sin() / l
 }
 
+/// Slope of the moment arm, `d^2L/dtheta^2` (m/rad^2), analytic:
+/// `a b cos(gamma) / L - (a b sin(gamma))^2 / L^3` (the sign of the knee axis squares away).
+pub fn moment_arm_slope_at(model: &LegSpec, knee_rad: f64) -> f64 {
+    let (a, b, gamma) = triangle(model, knee_rad);
+    let l = (a * a + b * b - 2.0 * a * b * gamma.cos()).max(0.0).sqrt();
+    let s = a * b * gamma.sin();
+    a * b * gamma.cos() / l - s * s / (l * l * l)
+}
+
 fn triangle(model: &LegSpec, knee_rad: f64) -> (f64, f64, f64) {
     let g = &model.geo;
     let pk = g.barrel_origin.t.minus(g.knee_origin.t); // knee -> pivot
@@ -264,4 +273,23 @@ pub fn hip_inverse_dynamics(model: &LegSpec, hip: (f64, f64, f64), knee: (f64, f
         - potential_energy_with_hip_at(model, hip.0 - H, knee.0)?)
         / (2.0 * H);
     Ok(m[0] * hip.2 + m[1] * knee.2 + m[3] * hip.1 * knee.1 + m[4] * knee.1 * knee.1 + dv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn moment_arm_slope_matches_a_central_difference() {
+        for (name, text) in crate::plant::BUILTIN_URDFS {
+            let m = LegSpec::from_urdf_str(text, "knee").unwrap();
+            for deg in [0.0f64, 17.0, 45.0, 80.0, 100.0] {
+                let q = deg.to_radians();
+                let h = 1e-5;
+                let fd = (moment_arm_at(&m, q + h) - moment_arm_at(&m, q - h)) / (2.0 * h);
+                let exact = moment_arm_slope_at(&m, q);
+                assert!((fd - exact).abs() < 1e-8, "{name} at {deg} deg: {exact} vs {fd}");
+            }
+        }
+    }
 }

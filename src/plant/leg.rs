@@ -3,7 +3,8 @@
 use super::{PistonMotion, PistonPredictor, Plant, PlantInputs};
 use crate::error::{Error, Result};
 use crate::leg::{
-    generalized_inertia_at, knee_forward_acceleration, moment_arm_at, Leg, LegError, LegSolverParams, LegSpec,
+    generalized_inertia_at, knee_forward_acceleration, moment_arm_at, moment_arm_slope_at, Leg, LegError,
+    LegSolverParams, LegSpec,
 };
 use crate::record::LegRow;
 use rapier3d_f64::glamx::DVec3;
@@ -47,33 +48,6 @@ impl Default for LegParams {
             urdf_sha256: None,
         }
     }
-}
-
-/// The cuff point (m) in the shank frame, for a cuff on the shank or on a link fixed to it.
-fn cuff_point_in_shank(
-    model: &LegSpec,
-    leg: &Leg,
-    shank: usize,
-    cuff: (&str, [f64; 3]),
-) -> std::result::Result<[f64; 3], String> {
-    let (name, xyz) = cuff;
-    let link = model.link_index(name).ok_or_else(|| format!("no link `{name}` in the URDF"))?;
-    // Walk up through fixed joints: the cuff must move with the shank.
-    let mut cur = link;
-    while cur != shank {
-        let j = model.joints().iter().find(|j| j.child == cur && j.kind == crate::leg::JointKind::Fixed).ok_or_else(
-            || format!("`{name}` is not the shank (`{}`) or a link fixed to it", model.links()[shank].name),
-        )?;
-        cur = j.parent;
-    }
-    let world = leg.link_pose(link) * DVec3::from(xyz);
-    let local = leg.link_pose(shank).inverse() * world;
-    // The shank frame sits on the knee: a point on the knee axis has no lever arm.
-    let axis = DVec3::from(model.knee_joint().axis).normalize();
-    if local.cross(axis).length() < 1e-3 {
-        return Err(format!("the cuff point {xyz:?} of `{name}` lies on the knee axis: it cannot move the knee"));
-    }
-    Ok(local.into())
 }
 
 /// Check a cuff point against the model before anything is built: the cuff link must be the
@@ -216,12 +190,12 @@ impl LegPlant {
         let knee = model.knee_joint();
         let knee_axis = DVec3::from(knee.axis).normalize();
         let shank_link = knee.child;
-        let cuff_point = cuff_point_in_shank(&model, &leg, shank_link, (&setup.cuff.0, setup.cuff.1))
+        let cuff_point = cuff_point_from_model(&model, &setup.cuff.0, setup.cuff.1)
             .map_err(|m| Error::input(source_name, "human.cuff_link", m))?;
         let mass = setup.mass.clone();
         // xc_ddot = dL/dq * q_ddot + d(dL/dq)/dq * q_dot^2, with no cylinder force.
         let arm = moment_arm_at(&model, q0);
-        let darm = (moment_arm_at(&model, q0 + 1e-5) - moment_arm_at(&model, q0 - 1e-5)) / 2e-5;
+        let darm = moment_arm_slope_at(&model, q0);
         let h = hip.map_or((0.0, 0.0, 0.0), |h| (h.value, h.rate, h.accel));
         let free_accel_m_s2 = arm * knee_forward_acceleration(&model, h, q0, qd0, 0.0).map_err(bad)? + darm * qd0 * qd0;
         Ok(Self {
@@ -288,9 +262,7 @@ impl Plant for LegPlant {
             velocity_lead_s: self.velocity_lead_s,
             lead_exempt_accel_m_s2: {
                 let (q, qd) = (self.leg.knee_angle_rad(), self.leg.knee_velocity_rad_s());
-                let h = 1e-5;
-                let dm = (moment_arm_at(&self.model, q + h) - moment_arm_at(&self.model, q - h)) / (2.0 * h);
-                dm * qd * qd
+                moment_arm_slope_at(&self.model, q) * qd * qd
             },
         })
     }

@@ -24,60 +24,29 @@ pub struct FourierSeries {
     w: f64,
 }
 
-/// Solve a dense linear system (Gaussian elimination with partial pivoting).
-fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
-    let n = b.len();
-    for c in 0..n {
-        let p = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs())).unwrap_or(c);
-        a.swap(c, p);
-        b.swap(c, p);
-        for r in c + 1..n {
-            let f = a[r][c] / a[c][c];
-            if f != 0.0 {
-                let (top, bottom) = a.split_at_mut(r);
-                for (x, y) in bottom[0][c..].iter_mut().zip(&top[c][c..]) {
-                    *x -= f * y;
-                }
-                b[r] -= f * b[c];
-            }
-        }
-    }
-    let mut x = vec![0.0; n];
-    for r in (0..n).rev() {
-        let s: f64 = (r + 1..n).map(|k| a[r][k] * x[k]).sum();
-        x[r] = (b[r] - s) / a[r][r];
-    }
-    x
-}
-
 impl FourierSeries {
     /// Least-squares fit of `harmonics` harmonics to samples `(x, y)` of a function of period
-    /// `period`. Needs more samples than `2*harmonics + 1`.
+    /// `period`, by Householder QR of the design matrix (nalgebra): no normal equations, so the
+    /// conditioning is that of the basis, not its square. Needs more samples than
+    /// `2*harmonics + 1`.
     pub fn fit(x: &[f64], y: &[f64], period: f64, harmonics: usize) -> Self {
         let w = std::f64::consts::TAU / period;
         let n = 2 * harmonics + 1;
-        let basis = |xi: f64| -> Vec<f64> {
-            let mut v = Vec::with_capacity(n);
-            v.push(1.0);
-            for k in 1..=harmonics {
-                let (s, c) = (k as f64 * w * xi).sin_cos();
-                v.push(c);
-                v.push(s);
-            }
-            v
-        };
-        let mut ata = vec![vec![0.0; n]; n];
-        let mut aty = vec![0.0; n];
-        for (&xi, &yi) in x.iter().zip(y) {
-            let phi = basis(xi);
-            for (i, pi) in phi.iter().enumerate() {
-                aty[i] += pi * yi;
-                for (m, pj) in ata[i].iter_mut().zip(&phi) {
-                    *m += pi * pj;
+        let a = nalgebra::DMatrix::from_fn(x.len(), n, |i, j| match j {
+            0 => 1.0,
+            _ => {
+                let k = j.div_ceil(2) as f64;
+                let (s, c) = (k * w * x[i]).sin_cos();
+                if j % 2 == 1 {
+                    c
+                } else {
+                    s
                 }
             }
-        }
-        let c = solve_dense(ata, aty);
+        });
+        let qr = a.qr();
+        let qty = qr.q().transpose() * nalgebra::DVector::from_column_slice(y);
+        let c = qr.r().solve_upper_triangular(&qty).unwrap_or_else(|| nalgebra::DVector::zeros(n));
         Self {
             c0: c[0],
             a: (0..harmonics).map(|k| c[1 + 2 * k]).collect(),
