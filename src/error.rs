@@ -36,7 +36,7 @@ pub enum Error {
         message: String,
     },
     /// The simulation produced a non-finite value.
-    #[error("simulation diverged at t = {time_s:.6} s: state `{state}` became {value}")]
+    #[error("simulation diverged at t = {time_s:.6} s: state `{state}` became {value:.6e}")]
     Diverged {
         /// Simulated time at which it was detected (s).
         time_s: f64,

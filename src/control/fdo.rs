@@ -56,3 +56,23 @@ impl Fdo {
         self.p.gain * self.psi(xi)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The analytic slope the backward-Euler update uses matches a central difference, on both
+    /// sides of 0 and where the cubic term dominates.
+    #[test]
+    fn estimate_slope_matches_a_central_difference() {
+        let f = Fdo::new(ObserverParams { gain: 2.5, exponent: 1.0 / 3.0 });
+        for xi in [-40.0, -3.0, -0.2, 0.05, 0.7, 12.0, 150.0] {
+            let h = 1e-6 * (1.0 + f64::abs(xi));
+            let fd = (f.estimate(xi + h) - f.estimate(xi - h)) / (2.0 * h);
+            let exact = f.estimate_slope(xi);
+            assert!((fd - exact).abs() < 1e-6 * exact.abs(), "xi {xi}: {exact} vs {fd}");
+        }
+        // At 150 the cubic term gives 3 L xi^2 = 168,750.
+        assert!((f.estimate_slope(150.0) / 168_750.0 - 1.0).abs() < 1e-3);
+    }
+}

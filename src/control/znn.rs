@@ -133,3 +133,34 @@ impl Controller for Znn {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::{ObserverParams, RbfParams};
+    use crate::hydraulics::HydraulicParams;
+
+    /// The sampled observer update is backward Euler: the new z satisfies
+    /// `z1 = z0 + Ts*(a + L*psi(x2 - z1))` to round-off, even where forward Euler would blow up.
+    #[test]
+    fn sampled_observer_step_is_backward_euler() {
+        let model = NominalModel { c: HydraulicParams::default().coefficients() };
+        let fdo = Fdo::new(ObserverParams::default());
+        let c = Znn::new(model, 100.0, Some((RbfNetwork::new(RbfParams::default()), fdo.clone())));
+        let y = Measurement { force_n: 120.0, force_rate_n_per_s: 900.0, spool_m: 1e-5, ..Default::default() };
+        let r = RefSample { value: 100.0, rate: 800.0, accel: 0.0 };
+        let mut s = [0.0; 8];
+        c.init(&y, &r, &mut s);
+        s[0] -= 60.0; // Xi = 60: forward Euler at 1 ms would take ts*3*L*Xi^2 = 10.8 > 2 (unstable).
+        let u = c.output(0.0, &r, &y, &s);
+        let (ts, z0) = (1e-3, s[0]);
+        c.discrete_update(0.0, ts, &r, &y, &mut s, &u);
+        let a = model.force_accel(u.valve_command, &y) + u.rbf_output_n_per_s2;
+        let residual = s[0] - z0 - ts * (a + fdo.estimate(y.force_rate_n_per_s - s[0]));
+        assert!(residual.abs() < 1e-9 * (1.0 + s[0].abs()), "residual {residual}");
+        // Forward Euler's step would not satisfy the implicit equation (so the check can fail).
+        let z_fe = z0 + ts * (a + fdo.estimate(y.force_rate_n_per_s - z0));
+        let residual_fe = z_fe - z0 - ts * (a + fdo.estimate(y.force_rate_n_per_s - z_fe));
+        assert!(residual_fe.abs() > 1.0, "forward Euler residual {residual_fe}");
+    }
+}

@@ -227,3 +227,32 @@ impl Cylinder {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Held at a supply-pressure bound, the load force does not move: the load cell's rate reads
+    /// 0 when it would push past the bound, and the state derivative is 0 too; a rate back into
+    /// the range is kept.
+    #[test]
+    fn load_cell_rate_is_held_at_the_pressure_bound() {
+        let h = HydraulicParams::default();
+        let c = Cylinder::new(&h, true, 0.0);
+        let (lo, hi) = c.force_bounds_n;
+        assert_eq!((lo, hi), (-h.max_pull_force_n(), h.max_push_force_n()));
+        let at_hi = HydraulicState { force_n: hi, ..Default::default() };
+        assert_eq!(c.rate_at_bound(&at_hi, 500.0), 0.0);
+        assert_eq!(c.rate_at_bound(&at_hi, -500.0), -500.0);
+        let at_lo = HydraulicState { force_n: lo, ..Default::default() };
+        assert_eq!(c.rate_at_bound(&at_lo, -500.0), 0.0);
+        assert_eq!(c.derivatives(&at_hi, &ForceChannelInput::default(), 500.0, 0.0).force_n, 0.0);
+        assert!(c.at_limit(&at_hi) && c.at_limit(&at_lo));
+        // Without the pressure limit nothing is held.
+        let free = Cylinder::new(&h, false, 0.0);
+        assert_eq!(free.rate_at_bound(&at_hi, 500.0), 500.0);
+        // The two-chamber model holds its pressures itself: its rate is never overridden.
+        let tc = Cylinder::new(&HydraulicParams { model: HydraulicModel::TwoChamber, ..h }, true, 0.0);
+        assert_eq!(tc.rate_at_bound(&at_hi, 500.0), 500.0);
+    }
+}

@@ -24,7 +24,8 @@ fn open_loop_force_from_piston_motion_matches_the_exact_solution() {
     let t = 1.0;
     let exact =
         -c.n2 * a * w * (c.n3 * (w * t).cos() + w * (w * t).sin() - c.n3 * (-c.n3 * t).exp()) / (c.n3 * c.n3 + w * w);
-    assert!((x[0] - exact).abs() < 1e-6 * exact.abs().max(1.0), "{} vs {exact}", x[0]);
+    // Measured: 3.5e-10 N off a -22.46 N exact value (RK4 at 0.1 ms).
+    assert!((x[0] - exact).abs() < 1e-9, "{} vs {exact}", x[0]);
     assert!(exact.abs() > 10.0, "the motion must load the channel: {exact} N");
 }
 
@@ -41,7 +42,10 @@ fn znn_compensates_piston_motion() {
     ];
     let still = common::run(&["controller.kind=\"znn\"", "metrics.settle_s=0.2"]).summary;
     let m = common::run(&moving).summary;
-    assert!(m.max_abs_force_error_after_settle_n < still.max_abs_force_error_after_settle_n + 0.05);
+    // Measured: 0.00115 N moving vs 0.00114 N still (+1 %).
+    let (mv, st) = (m.max_abs_force_error_after_settle_n, still.max_abs_force_error_after_settle_n);
+    assert!(mv < 1.03 * st, "moving {mv} vs still {st}");
     let wrong = common::run(&[&moving[..], &["controller.nominal.a2_m2=1.5e-4"]].concat()).summary;
-    assert!(wrong.max_abs_force_error_after_settle_n > 10.0 * m.max_abs_force_error_after_settle_n.max(0.01));
+    // Measured: 17.4 N with A2 27 % low: the n2*xc_ddot feed-forward is what tracks the motion.
+    assert!(wrong.max_abs_force_error_after_settle_n > 7.0, "{}", wrong.max_abs_force_error_after_settle_n);
 }

@@ -169,9 +169,20 @@ fn compare_prints_the_paper_table_and_writes_json() {
     let o = exoleg(&["compare", "--json", "cmp.json"], tmp.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(out.contains("9.24") && out.contains("33.58"), "{out}");
     let js: serde_json::Value = serde_json::from_slice(&std::fs::read(tmp.path().join("cmp.json")).unwrap()).unwrap();
-    assert_eq!(js.as_array().unwrap().len(), 8);
+    let cases = js.as_array().unwrap();
+    assert_eq!(cases.len(), 8);
+    // The default plant is the leg: case 1 measured 11.439 N (README: leg vs bench excess),
+    // and the printed table carries our figure, not only the paper's.
+    let first = cases[0]["max_abs_force_error_n"].as_f64().unwrap();
+    assert!((first - 11.439).abs() < 0.02, "{first}");
+    assert!(out.contains(&format!("{first:.3}")), "{out}");
+    for pair in cases.chunks(2) {
+        let (z, s) =
+            (pair[0]["max_abs_force_error_n"].as_f64().unwrap(), pair[1]["max_abs_force_error_n"].as_f64().unwrap());
+        // Measured ratios 0.43-0.50.
+        assert!(z < 0.6 * s, "ZNN {z} vs ERL-SMC {s}");
+    }
 }
 
 #[test]

@@ -20,13 +20,14 @@ fn comfortable_walking_tracks_knee_and_force_without_saturation() {
         out.peak_cylinder_force_n,
         out.peak_power_w
     );
-    assert!(rms < 1.0 && max < 3.0, "knee RMS {rms} max {max}");
-    assert!(out.rms_force_error_after_settle_n < 5.0);
+    // Measured: knee RMS 0.0089 deg, max 0.0278 deg; force RMS 0.935 N, max 3.857 N.
+    assert!(rms < 0.025 && max < 0.07, "knee RMS {rms} max {max}");
+    assert!(out.rms_force_error_after_settle_n < 2.5 && out.max_abs_force_error_after_settle_n < 10.0);
     assert_eq!(out.valve_saturation_fraction, 0.0);
     assert_eq!(out.force_limit_fraction, 0.0);
     assert_eq!(out.strides.len(), 5);
-    // The actuator does real work: the swing needs hundreds of newtons.
-    assert!(out.peak_cylinder_force_n > 100.0 && out.peak_cylinder_force_n < 2600.0);
+    // The actuator does real work: measured peak 568 N (inverse dynamics of the swing).
+    assert!((540.0..600.0).contains(&out.peak_cylinder_force_n), "{}", out.peak_cylinder_force_n);
 }
 
 #[test]
@@ -39,7 +40,8 @@ fn fast_walking_keeps_the_knee_within_5_deg() {
         out.rms_force_error_after_settle_n,
         out.max_abs_force_error_after_settle_n
     );
-    assert!(max < 5.0, "knee max {max}");
+    // Measured: 0.0329 deg.
+    assert!(max < 0.09, "knee max {max}");
 }
 
 #[test]
@@ -77,16 +79,20 @@ fn degraded_interaction_and_disturbances_make_errors_worse_but_stay_stable() {
         f(&znn_step),
         f(&full_step)
     );
-    assert!(k(&base) > 1.1 * k(&strong), "weaker coupling should move the knee more");
-    assert!(f(&base) > 1.1 * f(&strong));
+    // Measured: knee 0.00892 vs 0.00502 deg (1.78x), force 0.9355 vs 0.1915 N (4.9x).
+    assert!(k(&base) > 1.4 * k(&strong), "weaker coupling should move the knee more");
+    assert!(f(&base) > 2.5 * f(&strong));
     // Without an observer, disturbances show up in the force error, in proportion to their size.
     assert!(f(&znn_paper) > f(&znn_base));
+    // Measured: 1.4697 vs 1.3949 N (+5.4 %): a 20,000 N/s^2 step adds ~D/gamma^2 = 0.5 N at most.
     assert!(f(&znn_step) > 1.03 * f(&znn_base), "a 20,000 N/s^2 step adds ~D/gamma^2 = 0.5 N");
     assert!(k(&znn_step) > k(&znn_base));
     // The observer takes the same step out: its force error moves by far less.
+    // Measured: 0.0064 N against 0.075 N (0.086 of it).
     assert!((f(&full_step) - f(&base)).abs() < 0.2 * (f(&znn_step) - f(&znn_base)));
     for s in [&strong, &base, &full_step, &znn_base, &znn_paper, &znn_step] {
-        assert!(k(s) < 1.0 && s.max_abs_force_error_after_settle_n < 50.0, "stable run expected");
+        // Measured: knee RMS at most 0.0105 deg, force max at most 6 N.
+        assert!(k(s) < 0.03 && s.max_abs_force_error_after_settle_n < 15.0, "stable run expected");
     }
 }
 
@@ -129,7 +135,8 @@ fn user_gait_csv_with_another_cadence() {
         serde_json::from_slice(&std::fs::read(dir.path().join("out/summary.json")).unwrap()).unwrap();
     let strides = js["strides"].as_array().unwrap();
     assert_eq!(strides.len(), 3, "3.75 s at 1.25 s per stride (96 steps/min)");
-    assert!(js["knee_rms_error_deg"].as_f64().unwrap() < 1.0);
+    // Measured: 0.0064 deg.
+    assert!(js["knee_rms_error_deg"].as_f64().unwrap() < 0.02);
     assert!(dir.path().join("out/knee_tracking.png").is_file());
 
     // Without any timing the error names the key.

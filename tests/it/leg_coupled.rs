@@ -22,9 +22,11 @@ fn check_free_and_hold(builtin: &str, file: &str) {
     let (t_ref, _) = mean_period(&r.simulate(30f64.to_radians(), 1e-4, 5.0));
     let err = (t_sim - t_ref) / t_ref;
     assert!(n_sim >= 3, "{builtin}: {n_sim} maxima");
-    assert!(err.abs() < 0.002, "{builtin}: period {t_sim} vs reference {t_ref} ({:.4}%)", 100.0 * err);
+    // Measured: -5.8e-6 (exo_leg), -1.3e-5 (exo_leg_small).
+    assert!(err.abs() < 3e-5, "{builtin}: period {t_sim} vs reference {t_ref} ({:.4}%)", 100.0 * err);
     let gap = out.summary.loop_closure_max_gap_m.unwrap();
-    assert!(gap < 1e-6, "{builtin}: loop gap {gap}");
+    // Measured: 6.8e-8 m, 8.6e-8 m.
+    assert!(gap < 2e-7, "{builtin}: loop gap {gap}");
 
     // Statics: the reference holding force, applied in `force` mode, keeps the knee still.
     for deg in [0.0f64, 30.0, 60.0, 90.0] {
@@ -37,7 +39,8 @@ fn check_free_and_hold(builtin: &str, file: &str) {
         ]);
         let q = knee_deg(&out);
         let dev = q.iter().fold(0.0f64, |m, x| m.max((x - deg).abs()));
-        assert!(dev < 0.05, "{builtin} at {deg} deg with {f} N: knee moved {dev} deg");
+        // Measured: at most 1.6e-4 deg over 1 s.
+        assert!(dev < 4e-4, "{builtin} at {deg} deg with {f} N: knee moved {dev} deg");
         // ... and 5% less force does not (the check can fail).
         let out = leg_run(&[
             &format!("leg.urdf=\"{builtin}\""),
@@ -46,7 +49,9 @@ fn check_free_and_hold(builtin: &str, file: &str) {
             &format!("leg.initial_knee_deg={deg:?}"),
         ]);
         let q = knee_deg(&out);
-        assert!(q.iter().any(|x| (x - deg).abs() > 0.05) || f.abs() < 2.0, "{builtin} {deg}: 95% force also held");
+        // Measured: 0.041 deg (exo_leg_small at 0 deg, holding force 1.07 N) to 15.5 deg.
+        let dev = q.iter().fold(0.0f64, |m, x| m.max((x - deg).abs()));
+        assert!(dev > 0.02, "{builtin} {deg}: 95% of the force also held ({dev} deg)");
     }
 }
 
@@ -63,7 +68,9 @@ fn a_second_urdf_passes_the_same_checks() {
 #[test]
 fn urdf_from_a_file_path_works() {
     let out = leg_run(&[&format!("leg.urdf=\"{}\"", manifest("urdf/exo_leg_small.urdf")), "sim.duration_s=0.2"]);
-    assert!(out.summary.max_abs_force_error_n < 20.0);
+    let builtin = leg_run(&["leg.urdf=\"builtin:exo_leg_small\"", "sim.duration_s=0.2"]);
+    // The file and the embedded copy are the same URDF: the same run, bit for bit.
+    assert_eq!(out.record.rows, builtin.record.rows);
 }
 
 #[test]
@@ -86,7 +93,8 @@ fn paper_cases_on_the_leg_znn_beats_erl_smc_and_the_excess_is_explained() {
         assert!(ez < es, "{:?}: ZNN {ez} vs ERL-SMC {es}", z.case);
         let aw = 200.0 * std::f64::consts::TAU * z.case.frequency_hz;
         let predicted = (aw + rate0) / (z.case.gain * std::f64::consts::E);
-        assert!((ez - predicted).abs() < 0.02 * predicted, "{:?}: {ez} N vs predicted {predicted} N", z.case);
+        // Measured: within 0.65 % of the prediction (-0.37, -0.65, +0.20, +0.02 %).
+        assert!((ez - predicted).abs() < 0.015 * predicted, "{:?}: {ez} N vs predicted {predicted} N", z.case);
     }
 }
 
@@ -96,8 +104,11 @@ fn coupling_error_shrinks_with_the_step() {
     let e = |dt: &str| leg_run(&[&format!("sim.dt_s={dt}")]).summary.max_abs_force_error_n;
     let bench = common::run(&[]).summary.max_abs_force_error_n;
     let (e1, e025) = (e("0.001"), e("0.00025"));
-    assert!(e1 > e025 && e025 > bench - 0.05, "1 ms {e1}, 0.25 ms {e025}, bench {bench}");
-    assert!((e025 - bench) < 0.5 * (e1 - bench), "not converging: {e1} {e025} {bench}");
+    // Measured: 11.44 N at 1 ms, 9.81 N at 0.25 ms, 9.247 N on the bench: the excess shrinks
+    // by 0.258 for a 4x smaller step (first order: 0.25).
+    let ratio = (e025 - bench) / (e1 - bench);
+    assert!(e1 > e025 && e025 > bench, "1 ms {e1}, 0.25 ms {e025}, bench {bench}");
+    assert!((0.2..0.32).contains(&ratio), "not first order: {e1} {e025} {bench} (ratio {ratio})");
 }
 
 #[test]
@@ -106,11 +117,11 @@ fn cuff_interaction_moves_the_knee() {
     let off = leg_run(&base);
     let cuff = leg_run(&[&base[..], &["human.mode=\"cuff\"", "human.k_p=2.0", "human.k_d=0.01"]].concat());
     let w = cuff.record.series(|r| r.interaction_force);
-    assert!(w.iter().any(|x| x.abs() > 1.0), "interaction force stays tiny");
+    // Measured: the cuff force reaches 73 N and moves the knee by up to 0.099 deg.
+    assert!(w.iter().any(|x| x.abs() > 30.0), "interaction force stays tiny");
     let (q0, q1) = (knee_deg(&off), knee_deg(&cuff));
     let d = q0.iter().zip(&q1).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-    assert!(d > 0.01, "cuff force did not change the knee trajectory ({d} deg)");
-    assert!(cuff.summary.max_abs_force_error_n.is_finite());
+    assert!(d > 0.04, "cuff force did not change the knee trajectory ({d} deg)");
 }
 
 #[test]
@@ -127,7 +138,8 @@ fn cuff_link_must_move_with_the_shank() {
     let foot = leg_run(&[&base[..], &["human.cuff_link=\"foot\"", "human.cuff_xyz=[0.0, 0.0, 0.0]"]].concat());
     let shank = leg_run(&[&base[..], &["human.cuff_link=\"shank\"", "human.cuff_xyz=[0.0, 0.0, -0.2]"]].concat());
     let (qf, qs) = (knee_deg(&foot), knee_deg(&shank));
-    assert!(qf.iter().zip(&qs).any(|(a, b)| (a - b).abs() > 1e-6), "a longer lever must act differently");
+    // Measured: the knee trajectories differ by up to 0.143 deg.
+    assert!(qf.iter().zip(&qs).any(|(a, b)| (a - b).abs() > 0.05), "a longer lever must act differently");
     let e = common::run_scenario(&common::leg_scenario(&[&base[..], &["human.cuff_link=\"thigh\""]].concat()))
         .err()
         .unwrap();

@@ -28,23 +28,24 @@ fn inverse_and_forward_dynamics_are_consistent_and_reduce_to_the_fixed_hip_model
         for (hip, knee) in states() {
             let tau = knee_inverse_dynamics(&model, hip, knee).unwrap();
             let acc = knee_forward_acceleration(&model, hip, knee.0, knee.1, tau).unwrap();
-            assert!((acc - knee.2).abs() < 1e-9 * (1.0 + knee.2.abs()), "{urdf}: {acc} vs {}", knee.2);
+            // Measured: 1.6e-16 (round-off): the two are exact inverses.
+            assert!((acc - knee.2).abs() < 1e-15 * (1.0 + knee.2.abs()), "{urdf}: {acc} vs {}", knee.2);
 
             // Fixed hip: same as the 1-DoF reduced model (tau = F dL/dtheta + tau_ext).
             let tau0 = knee_inverse_dynamics(&model, (0.0, 0.0, 0.0), knee).unwrap();
             let f = 37.0;
             let ext = tau0 - f * moment_arm_at(&model, knee.0);
             let acc0 = reduced_acceleration(&model, knee.0, knee.1, f, ext).unwrap();
-            assert!((acc0 - knee.2).abs() < 1e-7 * (1.0 + knee.2.abs()), "{urdf}: reduced {acc0} vs {}", knee.2);
+            assert!((acc0 - knee.2).abs() < 1e-15 * (1.0 + knee.2.abs()), "{urdf}: reduced {acc0} vs {}", knee.2);
             let a1 =
                 knee_forward_acceleration(&model, (0.0, 0.0, 0.0), knee.0, knee.1, f * moment_arm_at(&model, knee.0))
                     .unwrap();
             let a2 = reduced_acceleration(&model, knee.0, knee.1, f, 0.0).unwrap();
-            assert!((a1 - a2).abs() < 1e-7 * (1.0 + a2.abs()), "{urdf}: forward {a1} vs reduced {a2}");
+            assert!((a1 - a2).abs() < 1e-15 * (1.0 + a2.abs()), "{urdf}: forward {a1} vs reduced {a2}");
 
             let (_, _, mkk) = hip_knee_mass_matrix_at(&model, knee.0).unwrap();
             let m = generalized_inertia_at(&model, knee.0).unwrap();
-            assert!((mkk - m).abs() < 1e-12, "{urdf}: M_kk {mkk} vs {m}");
+            assert!((mkk - m).abs() < 1e-15, "{urdf}: M_kk {mkk} vs {m}");
         }
         // The hip mass matrix is positive definite; forward hip acceleration flexes the knee.
         let (mhh, mhk, mkk) = hip_knee_mass_matrix_at(&model, 0.0).unwrap();
@@ -63,9 +64,9 @@ fn knee_and_hip_inverse_dynamics_match_the_independent_reference() {
             let (qh_ref, qk_ref) = r.inverse_dynamics2(hip, knee);
             let qk = knee_inverse_dynamics(&model, hip, knee).unwrap();
             let qh = hip_inverse_dynamics(&model, hip, knee).unwrap();
-            // Reference second differences in time are good to ~1e-6 N m.
-            assert!((qk - qk_ref).abs() < 1e-5 * (1.0 + qk_ref.abs()), "{urdf}: knee {qk} vs ref {qk_ref}");
-            assert!((qh - qh_ref).abs() < 1e-5 * (1.0 + qh_ref.abs()), "{urdf}: hip {qh} vs ref {qh_ref}");
+            // Measured: within 2.8e-7 N m (the reference's second differences in time).
+            assert!((qk - qk_ref).abs() < 7e-7, "{urdf}: knee {qk} vs ref {qk_ref}");
+            assert!((qh - qh_ref).abs() < 7e-7, "{urdf}: hip {qh} vs ref {qh_ref}");
             worst = worst.max((qk - qk_ref).abs()).max((qh - qh_ref).abs());
         }
         println!("[{urdf}] max |ID - reference ID| = {worst:.3e} N m");
@@ -132,13 +133,16 @@ fn rapier_with_a_driven_hip_follows_the_reference_knee_trajectory() {
         // This hip motion drives the passive knee near resonance (-130..110 deg, |thd_k| up to
         // 11 rad/s): the closure drift per substep, ~ (thd_k dt / n_substeps)^2, reaches
         // 1.1-1.2e-6 m at 1 ms / 2 iterations and 3e-7 m at 0.5 ms (or 1 ms / 4 iterations).
-        assert!(gap < 2e-6, "{urdf}: loop gap {gap}");
-        assert!(gap_half < 1e-6, "{urdf}: loop gap {gap_half} at 0.5 ms");
-        assert!(herr < 1e-9, "{urdf}: hip angle error {herr}");
-        assert!(e_comp.to_degrees() < 0.5, "{urdf}: compensated knee error {} deg", e_comp.to_degrees());
+        // Measured (exo_leg / exo_leg_small): gap 1.10e-6 / 1.20e-6 m at 1 ms, 2.8e-7 / 3.0e-7 m
+        // at 0.5 ms; hip error 5.6e-17 rad; knee error 0.234 / 0.160 deg at 1 ms, halved at
+        // 0.5 ms; Rapier's kinematic joint alone: 167 / 179 deg.
+        assert!(gap < 3e-6, "{urdf}: loop gap {gap}");
+        assert!(gap_half < 7.5e-7, "{urdf}: loop gap {gap_half} at 0.5 ms");
+        assert!(herr < 2e-16, "{urdf}: hip angle error {herr}");
+        assert!(e_comp.to_degrees() < 0.6, "{urdf}: compensated knee error {} deg", e_comp.to_degrees());
         // First order in dt (the hip acceleration reaches the knee one step late at worst).
-        assert!(e_half < 0.7 * e_comp, "{urdf}: no convergence: {e_comp} (1 ms) vs {e_half} (0.5 ms)");
+        assert!(e_half < 0.6 * e_comp, "{urdf}: no convergence: {e_comp} (1 ms) vs {e_half} (0.5 ms)");
         // Documents the limitation: Rapier's kinematic joint alone loses M_hk * thdd_h.
-        assert!(e_raw > 5.0 * e_comp, "{urdf}: raw {e_raw} vs compensated {e_comp}");
+        assert!(e_raw > 200.0 * e_comp, "{urdf}: raw {e_raw} vs compensated {e_comp}");
     }
 }

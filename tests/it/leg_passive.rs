@@ -67,11 +67,14 @@ fn passive_check(urdf: &str) {
         "[{urdf}] moment arm (sim FD vs law of cosines) max rel err {:.3e}; cylinder velocity max rel err {:.3e}",
         max_marm_err, max_vel_err
     );
-    assert!(period_err.abs() < 0.002, "period error {period_err}");
-    assert!(max_gap < 1e-6, "gap {max_gap}");
-    assert!(max_de / de_osc < 0.005, "energy drift {max_de} J vs oscillation energy {de_osc} J");
-    assert!(max_marm_err < 1e-3, "moment arm error {max_marm_err}");
-    assert!(max_vel_err < 1e-3, "cylinder velocity error {max_vel_err}");
+    // Measured (exo_leg / exo_leg_small): period -5.8e-6 / -1.3e-5, gap 6.8e-8 / 8.6e-8 m,
+    // energy excursion 0.19 % / 0.26 % of the swing energy, moment arm and cylinder velocity
+    // within 1.2e-5 / 1.1e-5.
+    assert!(period_err.abs() < 3e-5, "period error {period_err}");
+    assert!(max_gap < 2e-7, "gap {max_gap}");
+    assert!(max_de / de_osc < 0.006, "energy drift {max_de} J vs oscillation energy {de_osc} J");
+    assert!(max_marm_err < 3e-5, "moment arm error {max_marm_err}");
+    assert!(max_vel_err < 3e-5, "cylinder velocity error {max_vel_err}");
 }
 
 #[test]

@@ -14,9 +14,10 @@ fn fdo_and_rbf_cut_steady_state_error_and_estimate_the_lumped_disturbance() {
     let e_znn = znn.summary.max_abs_force_error_after_settle_n;
     let e_full = full.summary.max_abs_force_error_after_settle_n;
     // Plain ZNN: steady error ~ D/gamma^2 plus the model error (MODEL.md: ~0.86 N).
-    assert!(e_znn > 0.4 && e_znn < 1.5, "plain ZNN steady error {e_znn}");
-    assert!(e_full <= 0.25 * e_znn, "ARBFNN-FDO-ZNN {e_full} vs ZNN {e_znn}");
-    assert!(e_full < 0.05, "ARBFNN-FDO-ZNN steady error {e_full}");
+    // Measured: 0.8625 N (MODEL.md's independent reference: ~0.86 N).
+    assert!((e_znn - 0.86).abs() < 0.03, "plain ZNN steady error {e_znn}");
+    // Measured: 0.0177 N (MODEL.md: ~0.015 N).
+    assert!(e_full < 0.045, "ARBFNN-FDO-ZNN steady error {e_full}");
 
     // The estimate g_hat + D_hat converges to the true lumped disturbance on dx2/dt.
     let r = &full.record;
@@ -24,13 +25,15 @@ fn fdo_and_rbf_cut_steady_state_error_and_estimate_the_lumped_disturbance() {
     let est = mean(&r.series(|r| r.disturbance_estimate_n_per_s2)[i0..]);
     let truth = mean(&r.series(|r| r.lumped_disturbance_n_per_s2)[i0..]);
     assert!(truth > 5000.0, "lumped disturbance includes the step: {truth}");
-    assert!((est - truth).abs() < 0.02 * truth, "estimate {est} vs true {truth}");
+    // Measured: -6.4e-5 relative.
+    assert!((est - truth).abs() < 2e-4 * truth, "estimate {est} vs true {truth}");
     // The RBF weights settle and g_hat moves toward the disturbance, not away from it.
     let g = r.series(|r| r.rbf_output_n_per_s2);
     let g_end = *g.last().unwrap();
     assert!(g_end > 0.0, "g_hat {g_end} should share the sign of D");
     let g_a = g[g.len() - 200];
-    assert!((g_end - g_a).abs() < 0.05 * truth, "g_hat still moving: {g_a} -> {g_end}");
+    // Measured: g_hat moves by 227 N/s^2 (0.04 of the disturbance) over the last 0.2 s.
+    assert!((g_end - g_a).abs() < 0.1 * truth, "g_hat still moving: {g_a} -> {g_end}");
 }
 
 #[test]
@@ -48,7 +51,10 @@ fn observer_limit_at_one_millisecond() {
     };
     assert!(at(30_000.0, 1e-3).is_ok());
     match at(50_000.0, 1e-3) {
-        Err(exoleg::Error::Diverged { state, .. }) => assert!(!state.is_empty()),
+        // Measured: the spool runs away (the cubic term's stiffness) at t = 19 ms.
+        Err(exoleg::Error::Diverged { state, time_s, .. }) => {
+            assert!(state.starts_with("spool_m") && time_s < 0.05, "{state} at {time_s} s")
+        }
         other => panic!("expected divergence, got {:?}", other.map(|o| o.summary.max_abs_force_error_n)),
     }
     assert!(at(50_000.0, 5e-4).is_ok());

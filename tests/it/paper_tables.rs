@@ -18,6 +18,7 @@ fn arbfnn_fdo_znn_max_errors_within_half_percent_and_erl_smc_worse() {
         assert_eq!(znn.case.controller, "arbfnn_fdo_znn");
         assert_eq!(smc.case.controller, "erl_smc");
         let d = znn.max_error_diff_pct.unwrap();
+        // Measured: +0.08, +0.19, +0.03, +0.02 %.
         assert!(
             d.abs() < 0.5,
             "{:?}: ours {:?} vs paper {} ({d:+.3}%)",
@@ -62,6 +63,7 @@ fn plain_znn_without_disturbance_follows_the_critically_damped_error_law() {
             let exact = -200.0 * w * r.t_s * (-gamma * r.t_s).exp();
             worst = worst.max((r.force_error_n - exact).abs());
         }
-        assert!(worst < 1e-3, "f={f_hz} gamma={gamma}: worst deviation {worst} N");
+        // Measured: 1.2e-6 N (2 Hz), 2.7e-5 N (10 Hz).
+        assert!(worst < 7e-5, "f={f_hz} gamma={gamma}: worst deviation {worst} N");
     }
 }

@@ -35,7 +35,10 @@ fn arbfnn_fdo_znn_at_1khz_with_differenced_load_cell_is_unstable() {
     for extra in ["actuator.pressure_limit=true", "actuator.pressure_limit=false"] {
         let s = common::scenario(&["controller.sample_period_s=0.001", extra]);
         match run_scenario(&s) {
-            Err(exoleg::Error::Diverged { time_s, .. }) => assert!(time_s < 0.5, "{extra}: late divergence {time_s}"),
+            Err(exoleg::Error::Diverged { time_s, .. }) => {
+                // Measured: 6 ms.
+                assert!(time_s < 0.02, "{extra}: late divergence {time_s}")
+            }
             Ok(out) => panic!("{extra}: expected instability, got max error {}", out.summary.max_abs_force_error_n),
             Err(e) => panic!("{e}"),
         }

@@ -33,11 +33,14 @@ fn delay_noise_quantisation_and_saturation_each_make_tracking_worse() {
         sat.rms_force_error_after_settle_n,
         100.0 * sat.valve_saturation_fraction
     );
-    assert!(delayed > 1.05 * base, "delay");
-    assert!(noisy > 1.05 * base, "noise");
+    // Measured: base 1.5529, delay 7.27 (4.7x), noise 1.790 (1.15x), 12-bit 1.625, 16-bit
+    // 1.5532, 32-bit 1.5529, valve limit 24.06 N with 40.4 % saturated.
+    assert!(delayed > 3.0 * base, "delay");
+    assert!(noisy > 1.07 * base, "noise");
     assert!(adc12 > adc16 && adc16 >= adc32, "coarser converters are worse");
     assert!((adc32 - base).abs() < 1e-6 * base.max(1.0), "32-bit is effectively ideal");
-    assert!(sat.valve_saturation_fraction > 0.05 && sat.rms_force_error_after_settle_n > 1.05 * base, "saturation");
+    assert!((0.3..0.5).contains(&sat.valve_saturation_fraction), "{}", sat.valve_saturation_fraction);
+    assert!(sat.rms_force_error_after_settle_n > 8.0 * base, "saturation");
 }
 
 #[test]
@@ -51,7 +54,8 @@ fn pressure_limit_caps_the_force_and_is_reported() {
     let out = run(&["reference.amplitude_n=3000.0", "controller.kind=\"znn\""]).summary;
     let h = exoleg::hydraulics::HydraulicParams::default();
     assert!(out.peak_load_force_n <= h.max_push_force_n() + 1e-9);
-    assert!(out.force_limit_fraction > 0.1, "{}", out.force_limit_fraction);
+    // Measured: 64 % of the time at the limit.
+    assert!(out.force_limit_fraction > 0.5, "{}", out.force_limit_fraction);
     let free =
         run(&["reference.amplitude_n=3000.0", "controller.kind=\"znn\"", "actuator.pressure_limit=false"]).summary;
     assert!(free.peak_load_force_n > 2900.0 && free.force_limit_fraction == 0.0);
@@ -62,6 +66,7 @@ fn two_chamber_plant_agrees_on_the_paper_case_with_a_fine_step_and_differs_for_l
     // Paper case, ARBFNN-FDO-ZNN: the observer absorbs the nonlinear plant (at 50 us).
     let lin = run(&["sim.dt_s=0.00005"]).summary.max_abs_force_error_n;
     let tc = run(&["sim.dt_s=0.00005", "hydraulics.model=\"two_chamber\""]).summary.max_abs_force_error_n;
+    // Measured: 9.2457 vs 9.3087 N (+0.68 %).
     assert!((tc - lin).abs() < 0.02 * lin, "linear {lin} vs two-chamber {tc}");
     // Large piston strokes (bench moves 20 mm at 1 Hz), plain ZNN: volumes change, the
     // orifice gain depends on direction; the linear model cannot see either.
@@ -69,7 +74,8 @@ fn two_chamber_plant_agrees_on_the_paper_case_with_a_fine_step_and_differs_for_l
     let lin = rms(&big);
     let tc = rms(&[&big[..], &["hydraulics.model=\"two_chamber\""]].concat());
     println!("large strokes, plain ZNN force RMS: linear {lin:.3} N, two-chamber {tc:.3} N");
-    assert!(tc > 2.0 * lin, "two-chamber should differ visibly: {tc} vs {lin}");
+    // Measured: 0.001 N linear, 36.3 N two-chamber.
+    assert!(lin < 0.003 && tc > 15.0, "two-chamber should differ visibly: {tc} vs {lin}");
 }
 
 fn exoleg(args: &[&str]) -> std::process::Output {
@@ -115,14 +121,14 @@ fn robustness_report_passes_and_fails_by_the_criteria() {
 
 #[test]
 fn monte_carlo_sweep_of_the_gait_is_the_same_with_one_or_two_threads() {
-    // 200 one-stride gait runs varying the pilot, the seal friction and the oil stiffness.
+    // 50 one-stride gait runs varying the pilot, the seal friction and the oil stiffness.
     let dir = tempfile::tempdir().unwrap();
     let p = scenario_path("gait_walk.toml");
     let common = [
         "sweep",
         &p,
         "--monte-carlo",
-        "200",
+        "50",
         "--vary",
         "human.k_p=uniform(0.0,1.0)",
         "--vary",
@@ -146,9 +152,9 @@ fn monte_carlo_sweep_of_the_gait_is_the_same_with_one_or_two_threads() {
     assert!(a.status.success() && b.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
     let la = std::fs::read_to_string(dir.path().join("j1/runs.jsonl")).unwrap();
     let lb = std::fs::read_to_string(dir.path().join("j2/runs.jsonl")).unwrap();
-    assert_eq!(la.lines().count(), 200);
+    assert_eq!(la.lines().count(), 50);
     assert_eq!(la, lb, "results must not depend on the thread count");
-    println!("200-run gait sweep: {w1:.2} s with 1 thread, {w2:.2} s with 2 (ratio {:.2})", w2 / w1);
+    println!("50-run gait sweep: {w1:.2} s with 1 thread, {w2:.2} s with 2 (ratio {:.2})", w2 / w1);
     let agg = std::fs::read_to_string(dir.path().join("j2/aggregate.csv")).unwrap();
-    assert!(agg.contains("knee_rms_error_deg,200,"), "{agg}");
+    assert!(agg.contains("knee_rms_error_deg,50,"), "{agg}");
 }
