@@ -140,6 +140,12 @@ fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
         100.0 * m.force_limit_fraction
     );
     println!("steps               {} ({:.0} steps/s)", m.steps, m.steps_per_second);
+    if m.hydraulic_substeps_max > 1 {
+        println!(
+            "substeps            the hydraulic states were stiff for sim.dt_s: {} steps substepped, up to {} times",
+            m.substepped_steps, m.hydraulic_substeps_max
+        );
+    }
     println!("outputs             {}", out.display());
 }
 

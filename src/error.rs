@@ -45,6 +45,24 @@ pub enum Error {
         /// The offending value.
         value: f64,
     },
+    /// A state is too stiff for the step even with the automatic substeps: the run would be
+    /// wrong, so it stops.
+    #[error(
+        "simulation stopped at t = {time_s:.6} s: `{state}` is too stiff for sim.dt_s = {step_s:e} s \
+         (local rate {rate_per_s:.3e} 1/s): it needs steps of at most {needed_step_s:.3e} s"
+    )]
+    Stiff {
+        /// Simulated time (s).
+        time_s: f64,
+        /// The stiff state.
+        state: String,
+        /// The fixed step (s).
+        step_s: f64,
+        /// The local rate (eigenvalue magnitude or frequency) found (1/s).
+        rate_per_s: f64,
+        /// The step the integrator would need (s).
+        needed_step_s: f64,
+    },
     /// Output could not be written.
     #[error("{}: cannot write: {message}", path.display())]
     Write {
@@ -78,7 +96,7 @@ impl Error {
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::Input { .. } | Error::Read { .. } => EXIT_BAD_INPUT,
-            Error::Diverged { .. } => EXIT_SIM_FAILED,
+            Error::Diverged { .. } | Error::Stiff { .. } => EXIT_SIM_FAILED,
             Error::Write { .. } => EXIT_FAILURE,
             Error::Criteria(_) => EXIT_CRITERIA_FAILED,
         }

@@ -104,10 +104,23 @@ pub struct Summary {
     pub knee_range_deg: Option<[f64; 2]>,
     /// Number of fixed steps.
     pub steps: usize,
+    /// Most substeps the hydraulic states needed in one step (1 = the fixed step was short
+    /// enough everywhere; see the README's stability bounds).
+    #[serde(default = "one")]
+    pub hydraulic_substeps_max: usize,
+    /// Number of steps whose hydraulic states were substepped.
+    #[serde(default)]
+    pub substepped_steps: usize,
     /// Wall-clock time of the simulation loop (s).
+    #[serde(default)]
     pub wall_time_s: f64,
     /// steps / wall_time_s.
+    #[serde(default)]
     pub steps_per_second: f64,
+}
+
+fn one() -> usize {
+    1
 }
 
 /// A figure of a [`Summary`] by name, for aggregation over a sweep (typed: a renamed field is
@@ -403,6 +416,8 @@ impl SummaryBuilder {
             loop_closure_max_gap_m: self.gap.map(|g| g.0),
             knee_range_deg: self.knee_range,
             steps,
+            hydraulic_substeps_max: 1,
+            substepped_steps: 0,
             wall_time_s,
             steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
         }

@@ -137,6 +137,9 @@ pub enum ControllerKind {
     ArbfnnFdoZnn,
     /// Exponential-reaching-law sliding-mode control (paper Eq. 50), the baseline.
     ErlSmc,
+    /// No feedback: the valve command is `controller.open_loop_command` from t = 0 (a valve
+    /// step; plant identification and stiffness checks).
+    OpenLoop,
 }
 
 impl ControllerKind {
@@ -146,36 +149,39 @@ impl ControllerKind {
             ControllerKind::Znn => "znn",
             ControllerKind::ArbfnnFdoZnn => "arbfnn_fdo_znn",
             ControllerKind::ErlSmc => "erl_smc",
+            ControllerKind::OpenLoop => "open_loop",
         }
     }
 }
 
-/// Build the controller a scenario asks for.
-pub fn build(
-    kind: ControllerKind,
-    model: NominalModel,
-    gains: &ControllerGains,
-    rbf: &RbfParams,
-    obs: &ObserverParams,
-) -> Box<dyn Controller> {
-    match kind {
-        ControllerKind::Znn => Box::new(Znn::new(model, gains.gamma, None)),
+/// Build the continuous-time controller a scenario asks for, with its nominal model.
+pub fn build(p: &ControllerParams, model: NominalModel) -> Box<dyn Controller> {
+    match p.kind {
+        ControllerKind::Znn => Box::new(Znn::new(model, p.gamma, None)),
         ControllerKind::ArbfnnFdoZnn => {
-            Box::new(Znn::new(model, gains.gamma, Some((RbfNetwork::new(rbf.clone()), Fdo::new(obs.clone())))))
+            Box::new(Znn::new(model, p.gamma, Some((RbfNetwork::new(p.rbf.clone()), Fdo::new(p.observer.clone())))))
         }
-        ControllerKind::ErlSmc => Box::new(ErlSmc::new(model, gains.k, gains.delta, gains.zeta)),
+        ControllerKind::ErlSmc => Box::new(ErlSmc::new(model, p.k, p.delta, p.zeta)),
+        ControllerKind::OpenLoop => Box::new(OpenLoop { valve_command: p.open_loop_command }),
     }
 }
 
-/// Gains of the controllers.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ControllerGains {
-    /// ZNN design parameter gamma (1/s). > 0.
-    pub gamma: f64,
-    /// ERL-SMC reaching gain k (1/s). > 0.
-    pub k: f64,
-    /// ERL-SMC sliding-surface slope delta (1/s). > 0.
-    pub delta: f64,
-    /// ERL-SMC switching gain zeta (N/s^2). >= 0.
-    pub zeta: f64,
+/// No feedback: a constant valve command. No internal state.
+pub struct OpenLoop {
+    /// The valve command u (dimensionless; k_s*u is the commanded spool position in m).
+    pub valve_command: f64,
+}
+
+impl Controller for OpenLoop {
+    fn kind(&self) -> &'static str {
+        "open_loop"
+    }
+    fn state_names(&self) -> Vec<String> {
+        Vec::new()
+    }
+    fn init(&self, _y: &Measurement, _r: &RefSample, _s: &mut [f64]) {}
+    fn output(&self, _t: f64, _r: &RefSample, _y: &Measurement, _s: &[f64]) -> ControlOutput {
+        ControlOutput { valve_command: self.valve_command, ..Default::default() }
+    }
+    fn derivatives(&self, _t: f64, _r: &RefSample, _y: &Measurement, _s: &[f64], _u: &ControlOutput, _ds: &mut [f64]) {}
 }

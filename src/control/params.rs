@@ -55,7 +55,7 @@ impl NominalParams {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ControllerParams {
-    /// `znn`, `arbfnn_fdo_znn` (default) or `erl_smc`.
+    /// `znn`, `arbfnn_fdo_znn` (default), `erl_smc` or `open_loop`.
     pub kind: ControllerKind,
     /// ZNN design parameter gamma (1/s). Default 100. > 0.
     pub gamma: f64,
@@ -65,6 +65,9 @@ pub struct ControllerParams {
     pub delta: f64,
     /// ERL-SMC switching gain zeta (N/s^2). Default 10. >= 0.
     pub zeta: f64,
+    /// `open_loop`: the constant valve command u (dimensionless; k_s*u is the commanded spool
+    /// position in m). Default 0.
+    pub open_loop_command: f64,
     /// Controller sample period (s); 0 = continuous (evaluated at every solver stage).
     /// Otherwise a whole multiple of `sim.dt_s`. Default 0.
     pub sample_period_s: f64,
@@ -84,6 +87,7 @@ impl Default for ControllerParams {
             k: 100.0,
             delta: 15.0,
             zeta: 10.0,
+            open_loop_command: 0.0,
             sample_period_s: 0.0,
             rbf: RbfParams::default(),
             observer: ObserverParams::default(),

@@ -198,6 +198,22 @@ impl Cylinder {
         }
     }
 
+    /// Local stiffness at a state: the fastest decay rate of the force channel (1/s: n3 for the
+    /// linear model, the chamber-pressure rate for the two-chamber one, the spool's 1/tau) and
+    /// the oil column's stiffness against the piston (N/m: n2, or the two-chamber value at the
+    /// current volumes). The loop substeps the hydraulic states when a step is too long for them.
+    pub fn local_stiffness(&self, h: &HydraulicState, piston_position_m: f64) -> (f64, f64) {
+        let spool = 1.0 / self.coeffs.tau_s;
+        match &self.chambers {
+            Chambers::Linear => (self.coeffs.n3.max(spool), self.coeffs.n2),
+            Chambers::Two(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, h.mean_pressure_pa);
+                let (rate, k) = tc.local_stiffness(p1, p2, h.spool_m, piston_position_m);
+                (rate.max(spool), k)
+            }
+        }
+    }
+
     /// Hold the states that sit against hard stops after a step.
     pub fn clamp(&self, h: &mut HydraulicState) {
         let sl = self.spool_limit_m;

@@ -121,6 +121,26 @@ impl TwoChamber {
         (dp1, dp2)
     }
 
+    /// Local stiffness at a state: the fastest decay rate of the chamber pressures (1/s), the
+    /// diagonal of their Jacobian, with the orifice's `d sqrt(dp)/dp` taken at a pressure drop
+    /// of at least 1 % of `p_s - p_r` (closer to a supply or return pressure the pressure stop
+    /// holds the chamber), and the oil column's stiffness `beta (A1^2/V1 + A2^2/V2)` (N/m).
+    pub fn local_stiffness(&self, p1: f64, p2: f64, x_v: f64, xc: f64) -> (f64, f64) {
+        let v1 = (self.v1_0 + self.a1 * xc).max(0.05 * self.v1_0);
+        let v2 = (self.v2_0 - self.a2 * xc).max(0.05 * self.v2_0);
+        let floor = 0.01 * (self.p_s - self.p_r);
+        let dsq = |d: f64| 0.5 / d.max(floor).sqrt();
+        let (g1, g2) = if x_v >= 0.0 {
+            (dsq(self.p_s - p1), dsq(p2 - self.p_r))
+        } else {
+            (dsq(p1 - self.p_r), dsq(self.p_s - p2))
+        };
+        let orifice = self.k_o * x_v.abs();
+        let l1 = self.beta / v1 * (orifice * g1 + self.kc1 + self.c_in + self.c_ex);
+        let l2 = self.beta / v2 * (orifice * g2 + self.kc2 + self.c_in + self.c_ex);
+        (l1.max(l2), self.beta * (self.a1 * self.a1 / v1 + self.a2 * self.a2 / v2))
+    }
+
     /// Change of the chamber pressures (Pa) for a piston displacement `dx` (m) at position `xc`.
     pub fn pressure_change_for_stroke(&self, xc: f64, dx: f64) -> (f64, f64) {
         let v1 = (self.v1_0 + self.a1 * xc).max(0.05 * self.v1_0);

@@ -90,6 +90,18 @@ impl PlotBuffer {
         p
     }
 
+    /// Number of buckets held (at most [`PLOT_BUCKETS`]).
+    pub fn buckets(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Smallest and largest force error kept (N): decimation keeps every extreme.
+    pub fn force_error_range_n(&self) -> (f64, f64) {
+        let lo = self.lo.iter().map(|v| v[FORCE_ERROR]).fold(f64::INFINITY, f64::min);
+        let hi = self.hi.iter().map(|v| v[FORCE_ERROR]).fold(f64::NEG_INFINITY, f64::max);
+        (lo, hi)
+    }
+
     /// Whether the run has a knee reference (gait plots).
     pub fn has_knee(&self) -> bool {
         self.knee

@@ -72,6 +72,39 @@ impl FourierSeries {
     }
 }
 
+/// Most rows a gait CSV may have.
+pub const MAX_GAIT_ROWS: usize = 100_000;
+/// Largest gap (in % of the cycle) allowed between consecutive rows, the wrap-around from the
+/// last row to the first row of the next cycle included.
+pub const MAX_GAIT_GAP_PCT: f64 = 10.0;
+
+/// The cycle percentages must cover one whole cycle: at most 100 % from first to last, and no
+/// gap (wrap-around included) wider than [`MAX_GAIT_GAP_PCT`].
+fn check_coverage(pct: &[f64]) -> std::result::Result<(), String> {
+    let (first, last) = (pct[0], pct[pct.len() - 1]);
+    let span = last - first;
+    if span > 100.0 + 1e-9 {
+        return Err(format!("spans {span} %; one cycle is at most 100 %"));
+    }
+    if span <= 1.0 + 1e-9 && first >= 0.0 {
+        return Err(format!(
+            "runs from {first} to {last}: that looks like fractions of the cycle (0..1); give percent (0..100)"
+        ));
+    }
+    let wrap = first + 100.0 - last;
+    let (gap, at) = pct
+        .windows(2)
+        .map(|w| (w[1] - w[0], w[0]))
+        .chain(std::iter::once((wrap, last)))
+        .fold((0.0f64, first), |a, b| if b.0 > a.0 { b } else { a });
+    if gap > MAX_GAIT_GAP_PCT + 1e-9 {
+        return Err(format!(
+            "covers only part of the cycle: {gap:.1} % without data after {at} % (at most {MAX_GAIT_GAP_PCT} %)"
+        ));
+    }
+    Ok(())
+}
+
 /// One gait cycle read from a CSV: knee (and optionally hip) angle against % of the cycle.
 #[derive(Debug, Clone)]
 pub struct GaitCycle {
@@ -111,10 +144,20 @@ impl GaitCycle {
                 }
                 Ok(v)
             };
+            if row > MAX_GAIT_ROWS + 1 {
+                return Err(bad("rows", format!("more than {MAX_GAIT_ROWS} rows (the cap)")));
+            }
+            let angle = |i: usize, cname: &str| -> Result<f64> {
+                let v = get(i, cname)?;
+                if v.abs() > 360.0 {
+                    return Err(bad(&format!("row {row}, {cname}"), format!("{v} is not a joint angle in degrees")));
+                }
+                Ok(v.to_radians())
+            };
             pct.push(get(ipct, "gait_cycle_pct")?);
-            knee.push(get(iknee, "knee_flexion_deg")?.to_radians());
+            knee.push(angle(iknee, "knee_flexion_deg")?);
             if let Some(i) = ihip {
-                hip.push(get(i, "hip_flexion_deg")?.to_radians());
+                hip.push(angle(i, "hip_flexion_deg")?);
             }
         }
         let need = (2 * harmonics + 2).max(8);
@@ -130,10 +173,7 @@ impl GaitCycle {
                 format!("cycle percentage must increase strictly: {} after {}", pct[i + 1], pct[i]),
             ));
         }
-        let span = pct[pct.len() - 1] - pct[0];
-        if span > 100.0 + 1e-9 {
-            return Err(bad("gait_cycle_pct", format!("spans {span} %; one cycle is at most 100 %")));
-        }
+        check_coverage(&pct).map_err(|m| bad("gait_cycle_pct", m))?;
         let rows = pct.len();
         let fit = |v: &[f64]| FourierSeries::fit(&pct, v, 100.0, harmonics);
         let hip = if ihip.is_some() { Some(fit(&hip)) } else { None };

@@ -146,7 +146,9 @@ pub struct MetricsSection {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ScenarioFile {
-    /// Seed of every random element (random disturbances). Default 1.
+    /// Seed of every random element (random disturbances, sensor noise, Monte-Carlo draws).
+    /// Default 1. 0..=2^64-1; above 2^63-1 (beyond TOML's integers) give it as a string.
+    #[serde(with = "seed_serde")]
     pub seed: u64,
     /// Time stepping.
     pub sim: SimSection,
@@ -196,6 +198,36 @@ impl Default for ScenarioFile {
             human: HumanParams::default(),
             metrics: MetricsSection::default(),
             criteria: Criteria::default(),
+        }
+    }
+}
+
+/// A seed is a u64; TOML integers are i64: values above i64::MAX are read from and written as
+/// decimal strings.
+mod seed_serde {
+    use serde::{de, Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &u64, s: S) -> Result<S::Ok, S::Error> {
+        match i64::try_from(*v) {
+            Ok(i) => s.serialize_i64(i),
+            Err(_) => s.serialize_str(&v.to_string()),
+        }
+    }
+
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Raw {
+        Int(i64),
+        Text(String),
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+        match Raw::deserialize(d)? {
+            Raw::Int(i) => u64::try_from(i).map_err(|_| de::Error::custom(format!("must be >= 0, got {i}"))),
+            Raw::Text(t) => t
+                .trim()
+                .parse::<u64>()
+                .map_err(|_| de::Error::custom(format!("must be an integer in 0..=18446744073709551615, got {t:?}"))),
         }
     }
 }

@@ -42,26 +42,29 @@ fn strip_nulls(v: serde_json::Value) -> serde_json::Value {
 }
 
 /// Apply one `dotted.key=value` override. The value is read as a TOML value
-/// (`1e-3`, `true`, `"text"`, `[1, 2]`); anything that is not valid TOML is taken as a string.
+/// (`1e-3`, `true`, `"text"`, `[1, 2]`, `{kind = "znn"}`); anything that is not valid TOML is
+/// taken as a string, except an integer too large for TOML's 64-bit signed integers, which is
+/// an error (or, for `seed`, which is unsigned, kept as its decimal text). A table merges into
+/// the table it overrides, key by key.
 pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
     let (key, raw) = set
         .split_once('=')
         .ok_or_else(|| Error::input("--set", set, "expected key=value (e.g. controller.gamma=200)"))?;
     let key = key.trim();
     let parts: Vec<&str> = key.split('.').collect();
-    if parts.iter().any(|p| p.is_empty()) {
+    if parts.iter().any(|p| p.trim().is_empty()) {
         return Err(Error::input("--set", key, "empty key segment"));
     }
-    let raw = raw.trim();
-    let value = format!("v = {raw}")
-        .parse::<toml::Table>()
-        .ok()
-        .and_then(|mut t| t.remove("v"))
-        .unwrap_or_else(|| toml::Value::String(raw.to_string()));
+    let value = parse_value(key, raw.trim())?;
     let mut cur = table;
     for (i, p) in parts.iter().enumerate() {
         if i + 1 == parts.len() {
-            cur.insert(p.to_string(), value);
+            match (cur.get_mut(*p), value) {
+                (Some(toml::Value::Table(old)), toml::Value::Table(new)) => merge(old, new),
+                (_, v) => {
+                    cur.insert(p.to_string(), v);
+                }
+            }
             return Ok(());
         }
         let entry = cur.entry(p.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
@@ -73,6 +76,39 @@ pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
         };
     }
     Ok(())
+}
+
+/// A `--set` value: TOML if it parses, else a string (see [`apply_set`]).
+fn parse_value(key: &str, raw: &str) -> Result<toml::Value> {
+    if let Some(v) = format!("v = {raw}").parse::<toml::Table>().ok().and_then(|mut t| t.remove("v")) {
+        return Ok(v);
+    }
+    let digits = raw.strip_prefix(['-', '+']).unwrap_or(raw);
+    if !digits.is_empty() && digits.chars().all(|c| c.is_ascii_digit() || c == '_') {
+        if key == "seed" && raw.parse::<u64>().is_ok() {
+            return Ok(toml::Value::String(raw.to_string()));
+        }
+        return Err(Error::input(
+            "--set",
+            key,
+            format!(
+                "integer {raw} is out of range (a scenario integer fits in 64 bits; seed in 0..=18446744073709551615)"
+            ),
+        ));
+    }
+    Ok(toml::Value::String(raw.to_string()))
+}
+
+/// Merge `new` into `old` key by key (tables recursively).
+fn merge(old: &mut toml::Table, new: toml::Table) {
+    for (k, v) in new {
+        match (old.get_mut(&k), v) {
+            (Some(toml::Value::Table(o)), toml::Value::Table(n)) => merge(o, n),
+            (_, v) => {
+                old.insert(k, v);
+            }
+        }
+    }
 }
 
 /// The first line of a serde error, with TOML's type names made plain ("invalid type: string"

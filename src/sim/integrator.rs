@@ -24,6 +24,17 @@ impl Integrator {
         }
     }
 
+    /// Stability limits of the scheme for a linear mode `x' = lambda x` with `lambda h` on the
+    /// negative real axis and on the imaginary axis: (real, imaginary). Forward Euler is
+    /// unstable for every undamped oscillation (0).
+    pub fn stability_limits(&self) -> (f64, f64) {
+        match self {
+            Integrator::Euler => (2.0, 0.0),
+            Integrator::Ode3 => (2.51, 1.73),
+            Integrator::Rk4 => (2.78, 2.82),
+        }
+    }
+
     /// One step of size `dt_s` from `(t_s, x)`; `f(t, x)` returns dx/dt.
     pub fn step<const N: usize>(
         &self,
@@ -60,6 +71,26 @@ impl Integrator {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One step on x' = lambda x multiplies x by R(lambda h): |R| <= 1 just inside the stated
+    /// limits and > 1 just outside.
+    #[test]
+    fn stability_limits_are_where_the_amplification_crosses_one() {
+        for m in [Integrator::Euler, Integrator::Ode3, Integrator::Rk4] {
+            let (re, im) = m.stability_limits();
+            let amp = |z_re: f64, z_im: f64| {
+                // Complex lambda h as a 2-vector: x' = [[a, -b], [b, a]] x.
+                let x = m.step(0.0, 1.0, &[1.0, 0.0], |_, x| [z_re * x[0] - z_im * x[1], z_im * x[0] + z_re * x[1]]);
+                x[0].hypot(x[1])
+            };
+            assert!(amp(-0.995 * re, 0.0) <= 1.0 && amp(-1.01 * re, 0.0) > 1.0, "{m:?} real");
+            if im > 0.0 {
+                assert!(amp(0.0, 0.995 * im) <= 1.0 && amp(0.0, 1.01 * im) > 1.0, "{m:?} imaginary");
+            } else {
+                assert!(amp(0.0, 0.01) > 1.0, "{m:?}: forward Euler amplifies every oscillation");
+            }
+        }
+    }
 
     /// Global error on x' = -x over [0, 1] must fall with the scheme's order.
     #[test]

@@ -43,7 +43,7 @@ pub use model::Model;
 pub use state::{PistonState, State};
 
 use crate::control::{
-    self, ControlOutput, Controller, ControllerGains, DiscreteController, Measurement, SampleInput, Sampled, ValveLimit,
+    self, ControlOutput, Controller, DiscreteController, Measurement, SampleInput, Sampled, ValveLimit,
 };
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
@@ -58,6 +58,10 @@ use std::sync::Arc;
 
 /// Spool travel (m) past which a run is declared unstable.
 const MAX_PLAUSIBLE_SPOOL_M: f64 = 1.0;
+/// Most substeps of the hydraulic states per fixed step; a stiffer state stops the run.
+pub const MAX_SUBSTEPS: usize = 1000;
+/// Fraction of the integrator's stability limit a substep may use.
+const STABILITY_MARGIN: f64 = 0.5;
 
 /// What is held over one step: the leg's piston predictor, the outer-loop force of the knee
 /// cascade, and (sampled mode) the controller output.
@@ -85,13 +89,13 @@ pub struct Simulation {
     state: State,
     held: Held,
     k: usize,
+    max_substeps: usize,
+    substepped_steps: usize,
 }
 
 /// Build the continuous-time controller a scenario asks for.
 pub fn build_controller(sc: &Model) -> Box<dyn Controller> {
-    let c = &sc.controller;
-    let gains = ControllerGains { gamma: c.gamma, k: c.k, delta: c.delta, zeta: c.zeta };
-    control::build(c.kind, sc.nominal, &gains, &c.rbf, &c.observer)
+    control::build(&sc.controller, sc.nominal)
 }
 
 impl Simulation {
@@ -113,7 +117,8 @@ impl Simulation {
         };
         let state = State { hyd: sc.cylinder.initial_state(), ..Default::default() };
         let output = matches!(control, ControlBlock::Sampled { .. }).then(ControlOutput::default);
-        Ok(Self { sc, plant, control, controller_names, state, held: Held { output, ..Default::default() }, k: 0 })
+        let held = Held { output, ..Default::default() };
+        Ok(Self { sc, plant, control, controller_names, state, held, k: 0, max_substeps: 1, substepped_steps: 0 })
     }
 
     /// The column layout of this run's record.
@@ -236,11 +241,15 @@ impl Simulation {
         let v0 = self.plant.piston_at(t).velocity_m_s;
         let r0 = self.dynamics().reference_at(t, &self.held);
         if self.hydraulic() {
+            let n = self.substeps(t)?;
             let d = self.dynamics();
-            let (plant, held) = (self.plant.as_ref(), &self.held);
-            let x = self.sc.integrator.step(t, dt, &start.pack(), |tau, xs| {
-                d.evaluate(tau, &State::unpack(xs), plant, held).derivative.pack()
-            });
+            let (plant, held, h) = (self.plant.as_ref(), &self.held, dt / n as f64);
+            let mut x = start.pack();
+            for i in 0..n {
+                x = self.sc.integrator.step(t + i as f64 * h, h, &x, |tau, xs| {
+                    d.evaluate(tau, &State::unpack(xs), plant, held).derivative.pack()
+                });
+            }
             self.state = State::unpack(&x);
         }
         let cylinder_force_n = match &self.held.predictor {
@@ -267,6 +276,52 @@ impl Simulation {
         self.sc.cylinder.clamp(&mut self.state.hyd);
         self.k += 1;
         self.check(t + dt)
+    }
+
+    /// Substeps the hydraulic states need over this step: the local stiffness (force-channel or
+    /// chamber-pressure rate, spool, piston friction over the effective mass, oil column) must
+    /// stay within half the integrator's stability limit. More than [`MAX_SUBSTEPS`] stops the
+    /// run with [`Error::Stiff`] naming the state and the step it needs.
+    fn substeps(&mut self, t: f64) -> Result<usize> {
+        let dt = self.sc.dt_s;
+        let xc = match &self.held.predictor {
+            Some(_) => self.state.piston.position_m,
+            None => self.plant.piston_at(t).position_m,
+        };
+        let (rate, k_oil) = self.sc.cylinder.local_stiffness(&self.state.hyd, xc);
+        let (mut real, mut real_state, mut omega) = (rate, "hydraulic pressure / load force", 0.0);
+        if let Some(p) = &self.held.predictor {
+            let fric = self.sc.friction.slope_n_s_per_m(self.state.piston.velocity_m_s) / p.effective_mass_kg;
+            if fric > real {
+                (real, real_state) = (fric, "piston velocity (seal friction)");
+            }
+            omega = (k_oil / p.effective_mass_kg).sqrt();
+        }
+        let (lim_re, lim_im) = self.sc.integrator.stability_limits();
+        let n_real = real * dt / (STABILITY_MARGIN * lim_re);
+        let n_imag = if lim_im > 0.0 { omega * dt / (STABILITY_MARGIN * lim_im) } else { 0.0 };
+        let need = n_real.max(n_imag).ceil().max(1.0);
+        if need > MAX_SUBSTEPS as f64 || !need.is_finite() {
+            let (state, rate, lim) =
+                if n_real >= n_imag { (real_state, real, lim_re) } else { ("oil column (piston)", omega, lim_im) };
+            return Err(Error::Stiff {
+                time_s: t,
+                state: state.into(),
+                step_s: dt,
+                rate_per_s: rate,
+                needed_step_s: STABILITY_MARGIN * lim / rate,
+            });
+        }
+        let n = need as usize;
+        self.max_substeps = self.max_substeps.max(n);
+        self.substepped_steps += usize::from(n > 1);
+        Ok(n)
+    }
+
+    /// Most substeps of the hydraulic states in one step so far, and how many steps needed
+    /// more than one.
+    pub fn substep_stats(&self) -> (usize, usize) {
+        (self.max_substeps, self.substepped_steps)
     }
 
     /// Stop on a non-finite state or an implausible spool.
@@ -316,7 +371,9 @@ pub fn run_with_design(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<(Su
         sim.step(&mut tee)?;
     }
     sim.finish(&mut tee)?;
-    Ok((metrics.finish(start.elapsed().as_secs_f64()), sim.controller_design()))
+    let mut summary = metrics.finish(start.elapsed().as_secs_f64());
+    (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
+    Ok((summary, sim.controller_design()))
 }
 
 /// Run and keep the whole record in memory (tests, the library API).

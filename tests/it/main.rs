@@ -6,6 +6,7 @@ mod architecture;
 mod bench_motion;
 mod cli;
 mod gait;
+mod hardening;
 mod leg_coupled;
 mod leg_hip;
 mod leg_passive;
