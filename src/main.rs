@@ -3,7 +3,17 @@
 use clap::Parser;
 
 fn main() {
-    let cli = exoleg::cli::Cli::parse();
+    let cli = match exoleg::cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if e.use_stderr() => {
+            // One line, like every other error: clap's first line, then where to look.
+            let text = e.render().to_string();
+            let first = text.lines().next().unwrap_or("error: bad arguments").trim_end();
+            eprintln!("{first} (see --help)");
+            std::process::exit(exoleg::error::EXIT_BAD_INPUT);
+        }
+        Err(e) => e.exit(),
+    };
     match exoleg::cli::run(cli) {
         Ok(code) => std::process::exit(code),
         Err(e) => {

@@ -305,3 +305,36 @@ impl Scenario {
         Ok(Scenario { base_dir: self.base_dir.clone(), ..s })
     }
 }
+
+/// Entry points of the fuzz targets (`fuzz/`) and of the hostile-corpus replay
+/// (`tests/corpus/`): each reads arbitrary text the way a run reads that input and returns
+/// the error a user would see. They must never panic.
+pub mod fuzz {
+    use super::{Resources, Scenario};
+    use crate::error::{Error, Result};
+
+    /// A scenario file: parse, validate, resolve (leg, gait and cascade included).
+    pub fn scenario(text: &str) -> Result<()> {
+        Scenario::from_toml_str("fuzz.toml", text, &[])?.resolve(&Resources::new()).map(|_| ())
+    }
+
+    /// URDF text through the leg loader with knee joint `knee`.
+    pub fn urdf(text: &str) -> Result<()> {
+        crate::leg::LegSpec::from_urdf_str(text, "knee")
+            .map(|_| ())
+            .map_err(|e| Error::input("fuzz.urdf", "leg.urdf", e.to_string()))
+    }
+
+    /// A gait CSV: parse and fit (12 harmonics).
+    pub fn gait_csv(text: &str) -> Result<()> {
+        crate::reference::GaitCycle::parse("fuzz.csv", text, 12).map(|_| ())
+    }
+
+    /// `--set` flags, one per line, on the embedded default scenario, resolved.
+    pub fn set_flags(text: &str) -> Result<()> {
+        let sets: Vec<String> = text.lines().map(str::to_string).collect();
+        Scenario::load(None, &sets)?.resolve(&Resources::new()).map(|_| ())
+    }
+}
+
+pub use fuzz::{gait_csv as fuzz_gait_csv, scenario as fuzz_scenario, set_flags as fuzz_set_flags, urdf as fuzz_urdf};

@@ -7,6 +7,7 @@ mod bench_motion;
 mod cli;
 mod gait;
 mod hardening;
+mod hostile;
 mod leg_coupled;
 mod leg_hip;
 mod leg_passive;
