@@ -165,6 +165,9 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bo
     if !quiet {
         print_summary(&sc, &report.summary, &out);
     }
+    for (channel, n) in &report.summary.sensor_clipped_readings {
+        eprintln!("warning: sensors.{channel}: {n} readings clipped at the full scale; raise sensors.{channel}.range");
+    }
     for c in &report.criteria {
         let verdict = if c.pass { "pass" } else { "FAIL" };
         println!("criterion {:<30} {verdict}: {:.4} (limit {:.4})", c.name, c.value, c.limit);

@@ -111,6 +111,10 @@ pub struct Summary {
     /// Number of steps whose hydraulic states were substepped.
     #[serde(default)]
     pub substepped_steps: usize,
+    /// Sampled mode: readings that clipped at a sensor's full scale, by channel (empty when
+    /// none did; see `sensors.*.range`).
+    #[serde(default)]
+    pub sensor_clipped_readings: std::collections::BTreeMap<String, usize>,
     /// Wall-clock time of the simulation loop (s).
     #[serde(default)]
     pub wall_time_s: f64,
@@ -418,6 +422,7 @@ impl SummaryBuilder {
             steps,
             hydraulic_substeps_max: 1,
             substepped_steps: 0,
+            sensor_clipped_readings: Default::default(),
             wall_time_s,
             steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
         }

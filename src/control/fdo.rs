@@ -2,19 +2,53 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Observer parameters.
+/// Observer parameters (`[controller.observer]`, or just `controller.observer = "eso"|"fdo"`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ObserverParams {
-    /// Gain L (1/s): D_hat = L*psi(Xi) turns Xi (N/s) into N/s^2. Default 1 (the paper's). > 0.
+    /// `dtznn`'s disturbance estimator: `eso` (Kalman extended-state observer, default) or
+    /// `fdo` (a discrete fixed-time observer, for comparison).
+    pub kind: super::EstimatorKind,
+    /// FDO gain L (1/s): D_hat = L*psi(Xi) turns Xi (N/s) into N/s^2. Default 1 (the paper's). > 0.
     pub gain: f64,
-    /// Exponent r in (0, 1). Default 1/3.
+    /// FDO exponent r in (0, 1). Default 1/3.
     pub exponent: f64,
+    /// `dtznn`: process-noise spectral densities of the ESO's states [F (N^2/s), x_v (m^2/s),
+    /// q ((N/s)^2/s), D ((N/s^2)^2/s)]. Default [0, 1e-12, 1e2, 1e12] (DISCRETE.md). >= 0.
+    pub process_noise: [f64; 4],
 }
 
 impl Default for ObserverParams {
     fn default() -> Self {
-        Self { gain: 1.0, exponent: 1.0 / 3.0 }
+        Self { kind: super::EstimatorKind::Eso, gain: 1.0, exponent: 1.0 / 3.0, process_noise: [0.0, 1e-12, 1e2, 1e12] }
+    }
+}
+
+/// `controller.observer` as a table or as the estimator's name alone (errors inside the
+/// table keep their key).
+pub(crate) mod observer_serde {
+    use super::ObserverParams;
+    use serde::de::{self, MapAccess, Visitor};
+    use serde::{Deserialize, Deserializer};
+
+    struct V;
+
+    impl<'de> Visitor<'de> for V {
+        type Value = ObserverParams;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("\"eso\", \"fdo\" or a table of observer settings")
+        }
+        fn visit_str<E: de::Error>(self, v: &str) -> Result<ObserverParams, E> {
+            let kind = super::super::EstimatorKind::deserialize(de::value::StrDeserializer::<E>::new(v))?;
+            Ok(ObserverParams { kind, ..Default::default() })
+        }
+        fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<ObserverParams, A::Error> {
+            ObserverParams::deserialize(de::value::MapAccessDeserializer::new(map))
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<ObserverParams, D::Error> {
+        d.deserialize_any(V)
     }
 }
 
@@ -65,7 +99,7 @@ mod tests {
     /// sides of 0 and where the cubic term dominates.
     #[test]
     fn estimate_slope_matches_a_central_difference() {
-        let f = Fdo::new(ObserverParams { gain: 2.5, exponent: 1.0 / 3.0 });
+        let f = Fdo::new(ObserverParams { gain: 2.5, ..Default::default() });
         for xi in [-40.0, -3.0, -0.2, 0.05, 0.7, 12.0, 150.0] {
             let h = 1e-6 * (1.0 + f64::abs(xi));
             let fd = (f.estimate(xi + h) - f.estimate(xi - h)) / (2.0 * h);

@@ -12,6 +12,8 @@
 //! Euler and holds `u` (sampled mode, as firmware does).
 
 mod arbfnn;
+mod discretize;
+mod dtznn;
 mod erl_smc;
 mod fdo;
 mod knee_pd;
@@ -20,6 +22,8 @@ mod sampled;
 mod znn;
 
 pub use arbfnn::*;
+pub use discretize::*;
+pub use dtznn::*;
 pub use erl_smc::*;
 pub use fdo::*;
 pub use knee_pd::*;
@@ -140,6 +144,9 @@ pub enum ControllerKind {
     /// No feedback: the valve command is `controller.open_loop_command` from t = 0 (a valve
     /// step; plant identification and stiffness checks).
     OpenLoop,
+    /// Discrete-time ZNN for firmware (sampled mode only): exact ZOH model, Kalman ESO with
+    /// delay compensation, one-step reference preview (see [`DtZnn`]).
+    Dtznn,
 }
 
 impl ControllerKind {
@@ -150,6 +157,7 @@ impl ControllerKind {
             ControllerKind::ArbfnnFdoZnn => "arbfnn_fdo_znn",
             ControllerKind::ErlSmc => "erl_smc",
             ControllerKind::OpenLoop => "open_loop",
+            ControllerKind::Dtznn => "dtznn",
         }
     }
 }
@@ -163,6 +171,9 @@ pub fn build(p: &ControllerParams, model: NominalModel) -> Box<dyn Controller> {
         }
         ControllerKind::ErlSmc => Box::new(ErlSmc::new(model, p.k, p.delta, p.zeta)),
         ControllerKind::OpenLoop => Box::new(OpenLoop { valve_command: p.open_loop_command }),
+        // dtznn is discrete only (validation refuses it in continuous mode); as a continuous
+        // block it is the plain ZNN law it is derived from.
+        ControllerKind::Dtznn => Box::new(Znn::new(model, p.gamma, None)),
     }
 }
 

@@ -55,7 +55,7 @@ impl NominalParams {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ControllerParams {
-    /// `znn`, `arbfnn_fdo_znn` (default), `erl_smc` or `open_loop`.
+    /// `znn`, `arbfnn_fdo_znn` (default), `erl_smc`, `open_loop` or `dtznn` (sampled only).
     pub kind: ControllerKind,
     /// ZNN design parameter gamma (1/s). Default 100. > 0.
     pub gamma: f64,
@@ -71,9 +71,17 @@ pub struct ControllerParams {
     /// Controller sample period (s); 0 = continuous (evaluated at every solver stage).
     /// Otherwise a whole multiple of `sim.dt_s`. Default 0.
     pub sample_period_s: f64,
+    /// `dtznn`: the delay (samples) the controller assumes in its readings. Default: the
+    /// sensors' `sensors.delay_samples`.
+    pub delay_samples: Option<usize>,
+    /// `dtznn`: internal model of a known periodic reference at this frequency (Hz) in the
+    /// disturbance model (two more states); 0 = off. Default 0.
+    pub resonator_hz: f64,
     /// RBF network.
     pub rbf: RbfParams,
-    /// Fixed-time disturbance observer.
+    /// Disturbance observer: the paper's FDO (`gain`, `exponent`) and dtznn's estimator
+    /// (`kind`, `process_noise`). `controller.observer = "fdo"` sets the kind alone.
+    #[serde(deserialize_with = "super::fdo::observer_serde::deserialize")]
     pub observer: ObserverParams,
     /// The model the controller assumes.
     pub nominal: NominalParams,
@@ -89,6 +97,8 @@ impl Default for ControllerParams {
             zeta: 10.0,
             open_loop_command: 0.0,
             sample_period_s: 0.0,
+            delay_samples: None,
+            resonator_hz: 0.0,
             rbf: RbfParams::default(),
             observer: ObserverParams::default(),
             nominal: NominalParams::default(),

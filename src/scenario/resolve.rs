@@ -4,7 +4,7 @@
 
 use super::files::{InputText, Resources};
 use super::{ReferenceKind, Scenario, ScenarioFile};
-use crate::control::{KneePd, NominalModel};
+use crate::control::{ControllerKind, DtZnn, DtZnnSettings, KneePd, NominalModel, SensorModel, ValveLimit};
 use crate::error::{Error, Result};
 use crate::hydraulics::Cylinder;
 use crate::leg::LegSpec;
@@ -230,6 +230,29 @@ fn leg_start(s: &Scenario, model: &LegSpec, reference: &ForceReference) -> Resul
     Ok((LegStart { knee_rad: q0, knee_rate_rad_s: qd0, hip }, on_trajectory))
 }
 
+/// Design `dtznn` once from the controller's nominal model and what it knows of its sensors.
+fn design_dtznn(s: &Scenario, nominal: NominalModel) -> Result<Option<DtZnn>> {
+    let f = &s.file;
+    if f.controller.kind != ControllerKind::Dtznn {
+        return Ok(None);
+    }
+    let sensors =
+        SensorModel { force_sd_n: f.sensors.reading_sd(0).unwrap_or(0.0), spool_sd_m: f.sensors.reading_sd(1) };
+    let settings = DtZnnSettings {
+        gamma: f.controller.gamma,
+        period_s: f.controller.sample_period_s,
+        delay_samples: f.controller.delay_samples.unwrap_or(f.sensors.delay_samples),
+        process_noise: f.controller.observer.process_noise,
+        resonator_hz: f.controller.resonator_hz,
+        estimator: f.controller.observer.kind,
+        sensors,
+        limit: ValveLimit(f.actuator.valve_command_limit),
+    };
+    DtZnn::new(nominal, settings)
+        .map(Some)
+        .map_err(|m| Error::input(&s.source_name, "controller", format!("dtznn design: {m}")))
+}
+
 impl Scenario {
     /// Resolve this validated scenario with shared inputs from `res`. Every input error
     /// (files, leg, gait, cuff) is reported here.
@@ -269,6 +292,7 @@ impl Scenario {
             (Some(b), _) => Band::Fixed(b),
             (None, ReferenceKind::Sine) => Band::Fixed(0.01 * f.reference.amplitude_n),
         };
+        let nominal = NominalModel { c: f.controller.nominal.apply(&f.hydraulics).coefficients() };
         let dt_s = f.sim.dt_s;
         let sample_every =
             (f.controller.sample_period_s > 0.0).then(|| (f.controller.sample_period_s / dt_s).round() as usize);
@@ -285,7 +309,8 @@ impl Scenario {
             knee_pd,
             cylinder: Cylinder::new(&f.hydraulics, f.actuator.pressure_limit, f.actuator.spool_limit_m),
             controller: f.controller.clone(),
-            nominal: NominalModel { c: f.controller.nominal.apply(&f.hydraulics).coefficients() },
+            nominal,
+            dtznn: design_dtznn(self, nominal)?,
             friction: f.friction.clone(),
             actuator: f.actuator.clone(),
             human: f.human.clone(),

@@ -1,6 +1,7 @@
 //! Validation of a deserialised scenario: finiteness, signs, ranges, consistency.
 
 use super::ScenarioFile;
+use crate::control::ControllerKind;
 use crate::disturbance::{Signal, Term};
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
@@ -189,6 +190,19 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
             ));
         }
     }
+    if ct.kind == ControllerKind::Dtznn && ct.sample_period_s == 0.0 {
+        return Err(c.fail(
+            "controller.kind",
+            "`dtznn` is a discrete-time (firmware) controller: set controller.sample_period_s > 0",
+        ));
+    }
+    c.non_negative("controller.resonator_hz", ct.resonator_hz)?;
+    if ct.delay_samples.is_some_and(|d| d > 100_000) {
+        return Err(c.fail("controller.delay_samples", "at most 100000 samples"));
+    }
+    for (i, v) in ct.observer.process_noise.iter().enumerate() {
+        c.non_negative(&format!("controller.observer.process_noise.{i}"), *v)?;
+    }
     c.positive("controller.rbf.width", ct.rbf.width)?;
     c.positive("controller.rbf.eta", ct.rbf.eta)?;
     c.positive("controller.observer.gain", ct.observer.gain)?;
@@ -228,6 +242,24 @@ fn sensors_and_actuator(c: &Check, f: &ScenarioFile) -> Result<()> {
         if ch.bits.is_some_and(|b| b > 52) {
             return Err(c.fail(&format!("{key}.bits"), "must be at most 52 (f64 resolution)"));
         }
+    }
+    for (key, ch) in
+        [("sensors.force", &f.sensors.force), ("sensors.piston", &f.sensors.piston), ("sensors.knee", &f.sensors.knee)]
+    {
+        if !ch.enabled {
+            return Err(
+                c.fail(&format!("{key}.enabled"), "only the spool and piston-velocity sensors may be switched off")
+            );
+        }
+    }
+    if !f.sensors.spool.enabled && f.controller.kind != ControllerKind::Dtznn {
+        return Err(c.fail(
+            "sensors.spool.enabled",
+            format!(
+                "`{}` reads the spool position; only `dtznn` estimates it without a sensor",
+                f.controller.kind.as_str()
+            ),
+        ));
     }
     if f.sensors.delay_samples > 100_000 {
         return Err(c.fail("sensors.delay_samples", format!("at most 100000 samples, got {}", f.sensors.delay_samples)));

@@ -46,21 +46,35 @@ impl SensorPreset {
 }
 
 /// One measured channel.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ChannelParams {
+    /// The sensor exists. Default true. Only the spool LVDT and the piston-velocity sensor may
+    /// be switched off: without the spool sensor `dtznn` estimates the spool from its commands;
+    /// without the velocity sensor the velocity is the filtered difference of the position.
+    pub enabled: bool,
     /// Standard deviation of additive Gaussian noise (channel unit). Default 0. >= 0.
     pub noise_std: f64,
     /// A/D resolution in bits; absent = the preset's. 0 = no quantisation.
     pub bits: Option<u32>,
     /// Full scale: readings are clamped to and quantised over [-range, +range] (channel
-    /// unit); absent = the channel's default (force 5000 N, spool 1e-3 m, piston 0.1 m,
-    /// knee pi rad). > 0.
+    /// unit); absent = the channel's default (force 5000 N, spool 0.02 m, piston 0.2 m, knee
+    /// pi rad, piston velocity 1 m/s: every shipped scenario fits). A reading that clips is
+    /// counted and reported. > 0.
     pub range: Option<f64>,
 }
 
-/// Default full scales of the channels force, spool, piston, knee.
-pub const DEFAULT_RANGES: [f64; 4] = [5000.0, 1e-3, 0.1, std::f64::consts::PI];
+impl Default for ChannelParams {
+    fn default() -> Self {
+        Self { enabled: true, noise_std: 0.0, bits: None, range: None }
+    }
+}
+
+/// Default full scales of the channels force (N), spool (m), piston (m), knee (rad), piston
+/// velocity (m/s).
+pub const DEFAULT_RANGES: [f64; 5] = [5000.0, 0.02, 0.2, std::f64::consts::PI, 1.0];
+/// Channel names, in the order of [`DEFAULT_RANGES`].
+pub const CHANNELS: [&str; 5] = ["force", "spool", "piston", "knee", "piston_velocity"];
 
 /// Sensor parameters (scenario section `[sensors]`). Only used in sampled mode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -80,6 +94,8 @@ pub struct SensorParams {
     pub piston: ChannelParams,
     /// Knee angle encoder (rad).
     pub knee: ChannelParams,
+    /// Piston velocity sensor (m/s).
+    pub piston_velocity: ChannelParams,
 }
 
 impl Default for SensorParams {
@@ -92,6 +108,7 @@ impl Default for SensorParams {
             spool: ChannelParams::default(),
             piston: ChannelParams::default(),
             knee: ChannelParams::default(),
+            piston_velocity: ChannelParams::default(),
         }
     }
 }
@@ -99,21 +116,33 @@ impl Default for SensorParams {
 impl SensorParams {
     /// True when any effect beyond sampling is configured (noise, quantisation, delay, filter).
     pub fn has_effects(&self) -> bool {
-        let ch = [&self.force, &self.spool, &self.piston, &self.knee];
+        let ch = [&self.force, &self.spool, &self.piston, &self.knee, &self.piston_velocity];
         self.preset != SensorPreset::Ideal
             || self.delay_samples > 0
             || self.derivative_cutoff_hz > 0.0
-            || ch.iter().any(|c| c.noise_std > 0.0 || c.bits.unwrap_or(0) > 0)
+            || ch.iter().any(|c| c.noise_std > 0.0 || c.bits.unwrap_or(0) > 0 || !c.enabled)
     }
 
-    /// The channels with their dotted key prefix (for validation messages).
-    pub fn channels(&self) -> [(&'static str, &ChannelParams); 4] {
+    /// The channels with their dotted key prefix (for validation messages), in the order of
+    /// [`CHANNELS`].
+    pub fn channels(&self) -> [(&'static str, &ChannelParams); 5] {
         [
             ("sensors.force", &self.force),
             ("sensors.spool", &self.spool),
             ("sensors.piston", &self.piston),
             ("sensors.knee", &self.knee),
+            ("sensors.piston_velocity", &self.piston_velocity),
         ]
+    }
+
+    /// Standard deviation of a channel's reading (noise and quantisation, LSB/sqrt(12)), in
+    /// its unit; None if the channel is switched off.
+    pub fn reading_sd(&self, channel: usize) -> Option<f64> {
+        let (_, c) = self.channels()[channel];
+        c.enabled.then(|| {
+            let adc = Adc::new(c, self.preset, DEFAULT_RANGES[channel]);
+            (adc.noise_std * adc.noise_std + adc.lsb * adc.lsb / 12.0).sqrt()
+        })
     }
 }
 
@@ -192,7 +221,8 @@ impl Adc {
         Self { noise_std: c.noise_std, lsb, range }
     }
 
-    fn read(&self, x: f64, rng: &mut ChaCha8Rng) -> f64 {
+    /// A reading and whether it clipped at the full scale.
+    fn read(&self, x: f64, rng: &mut ChaCha8Rng) -> (f64, bool) {
         let n: f64 = if self.noise_std > 0.0 {
             {
                 let z: f64 = StandardNormal.sample(rng);
@@ -203,9 +233,9 @@ impl Adc {
         };
         let v = x + n;
         if self.lsb > 0.0 {
-            (v.clamp(-self.range, self.range) / self.lsb).round() * self.lsb
+            ((v.clamp(-self.range, self.range) / self.lsb).round() * self.lsb, v.abs() > self.range)
         } else {
-            v
+            (v, false)
         }
     }
 }
@@ -215,10 +245,12 @@ impl Adc {
 pub struct SampledSensors {
     period_s: f64,
     alpha: f64,
-    adc: [Adc; 4],
+    adc: [Adc; 5],
+    enabled: [bool; 5],
+    clipped: [usize; 5],
     rng: ChaCha8Rng,
     delay: usize,
-    line: VecDeque<[f64; 4]>,
+    line: VecDeque<[f64; 5]>,
     d_force: Differentiator,
     d_piston: Differentiator,
     d_piston_vel: Differentiator,
@@ -238,6 +270,8 @@ impl SampledSensors {
             period_s,
             alpha,
             adc: std::array::from_fn(|i| Adc::new(p.channels()[i].1, p.preset, DEFAULT_RANGES[i])),
+            enabled: std::array::from_fn(|i| p.channels()[i].1.enabled),
+            clipped: [0; 5],
             rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5E45_0125),
             delay: p.delay_samples,
             line: VecDeque::with_capacity(p.delay_samples + 1),
@@ -248,17 +282,33 @@ impl SampledSensors {
         }
     }
 
+    /// Readings that clipped at each channel's full scale so far, by channel name.
+    pub fn clipped(&self) -> Vec<(&'static str, usize)> {
+        CHANNELS.iter().copied().zip(self.clipped).filter(|(_, n)| *n > 0).collect()
+    }
+
     /// Take one sample of the plant.
     pub fn sample(&mut self, truth: &Truth) -> Measurement {
-        let raw = [truth.force_n, truth.spool_m, truth.piston_m, truth.knee_rad];
-        let reading: [f64; 4] = std::array::from_fn(|i| self.adc[i].read(raw[i], &mut self.rng));
+        let raw = [truth.force_n, truth.spool_m, truth.piston_m, truth.knee_rad, truth.piston_velocity_m_s];
+        let mut reading = [f64::NAN; 5];
+        for i in 0..5 {
+            if self.enabled[i] {
+                let (v, clipped) = self.adc[i].read(raw[i], &mut self.rng);
+                reading[i] = v;
+                self.clipped[i] += usize::from(clipped);
+            }
+        }
         self.line.push_back(reading);
         // Until the delay line fills, firmware sees its first reading.
-        let r = if self.line.len() > self.delay { self.line.pop_front().unwrap() } else { self.line[0] };
+        let r = if self.line.len() > self.delay { self.line.pop_front().unwrap_or(reading) } else { self.line[0] };
         let (ts, a) = (self.period_s, self.alpha);
         let force_rate = self.d_force.update(r[0], ts, a, truth.force_rate_n_per_s);
-        let vel = self.d_piston.update(r[2], ts, a, truth.piston_velocity_m_s);
-        let acc = self.d_piston_vel.update(vel, ts, a, truth.piston_accel_m_s2);
+        let (vel, acc) = if self.enabled[4] {
+            (r[4], self.d_piston_vel.update(r[4], ts, a, truth.piston_accel_m_s2))
+        } else {
+            let vel = self.d_piston.update(r[2], ts, a, truth.piston_velocity_m_s);
+            (vel, self.d_piston_vel.update(vel, ts, a, truth.piston_accel_m_s2))
+        };
         let knee_rate = self.d_knee.update(r[3], ts, a, truth.knee_rate_rad_s);
         Measurement {
             force_n: r[0],

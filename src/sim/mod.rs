@@ -110,7 +110,10 @@ impl Simulation {
         let control = match sc.sample_every {
             None => ControlBlock::Continuous(ctrl),
             Some(every) => ControlBlock::Sampled {
-                ctrl: Box::new(Sampled::new(ctrl, ValveLimit(sc.actuator.valve_command_limit))),
+                ctrl: match &sc.dtznn {
+                    Some(d) => Box::new(d.clone()),
+                    None => Box::new(Sampled::new(ctrl, ValveLimit(sc.actuator.valve_command_limit))),
+                },
                 sensors: Box::new(SampledSensors::new(&sc.sensors, sc.controller.sample_period_s, sc.seed)),
                 hold: ZeroOrderHold::new(every, ControlOutput::default()),
             },
@@ -186,7 +189,9 @@ impl Simulation {
                 let d = Dynamics { sc: &self.sc, controller: None };
                 let s0 = d.evaluate(t, &self.state, self.plant.as_ref(), &self.held);
                 let y = sensors.sample(&d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), t));
-                self.held.pd_force_n = d.pd_force(t, y.knee_rad, y.knee_rate_rad_s);
+                // The outer loop compares each reading with the reference at the reading's time.
+                let t_reading = (t - self.sc.sensors.delay_samples as f64 * sample_period).max(0.0);
+                self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, y.knee_rate_rad_s);
                 let r = d.reference_at(t, &self.held);
                 let r_next = d.reference_at(t + sample_period, &self.held);
                 let out = ctrl.update(&SampleInput { t_s: t, period_s: sample_period, y: &y, r, r_next });
@@ -318,6 +323,14 @@ impl Simulation {
         Ok(n)
     }
 
+    /// Sensor readings that clipped at full scale, by channel (sampled mode).
+    pub fn sensor_clips(&self) -> Vec<(&'static str, usize)> {
+        match &self.control {
+            ControlBlock::Sampled { sensors, .. } => sensors.clipped(),
+            ControlBlock::Continuous(_) => Vec::new(),
+        }
+    }
+
     /// Most substeps of the hydraulic states in one step so far, and how many steps needed
     /// more than one.
     pub fn substep_stats(&self) -> (usize, usize) {
@@ -373,6 +386,7 @@ pub fn run_with_design(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<(Su
     sim.finish(&mut tee)?;
     let mut summary = metrics.finish(start.elapsed().as_secs_f64());
     (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
+    summary.sensor_clipped_readings = sim.sensor_clips().into_iter().map(|(k, n)| (k.to_string(), n)).collect();
     Ok((summary, sim.controller_design()))
 }
 

@@ -2,7 +2,7 @@
 //! with shared leg models. Built once by `scenario::resolve`; the loop only reads it.
 
 use super::Integrator;
-use crate::control::{ControllerParams, KneePd, NominalModel};
+use crate::control::{ControllerParams, DtZnn, KneePd, NominalModel};
 use crate::disturbance::Disturbances;
 use crate::human::HumanParams;
 use crate::hydraulics::{ActuatorParams, Cylinder, FrictionParams};
@@ -38,6 +38,8 @@ pub struct Model {
     pub controller: ControllerParams,
     /// The controller's nominal model.
     pub nominal: NominalModel,
+    /// The designed `dtznn` controller (gains computed once), cloned by every run.
+    pub dtznn: Option<DtZnn>,
     /// Piston friction.
     pub friction: FrictionParams,
     /// Actuator mode and limits.

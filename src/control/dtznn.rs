@@ -1,0 +1,300 @@
+//! Discrete-time ZNN force control for 1 kHz firmware (`controller.kind = "dtznn"`), the design
+//! of `shared/spec/DISCRETE.md`:
+//!
+//! ```text
+//! model   x = [F, x_v, q, D (, r1, r2)]       dF/dt = n1 x_v - n2 v - n3 F + q (+ r1)
+//!                                             dx_v/dt = (k_s u - x_v)/tau,  dq/dt = D,  dD/dt = 0
+//!                                             (resonator: r1' = r2, r2' = -w_r^2 r1)
+//! sampled exactly at h: u held (ZOH), the piston velocity v ramped (first-order hold,
+//!         extrapolated linearly from the last two readings)
+//! estimate x(t_{k-d}) with a steady-state Kalman gain L (DARE) from the d-samples-old force
+//!         (and spool) readings, then predict d samples ahead with the stored commands
+//! preview u_ff = (F_d(t_{k+1}) - Phi_FF F_d(t_k) - Phi_Fx xv_r - G_F(v)) / Gamma_F;
+//!         xv_r <- Phi_xx xv_r + Gamma_x u_ff      (the reference state of the sampled model)
+//! Zhang   s = c . (x_hat - x_ref), c = [gamma - n3, n1, 1, 0 (, 1, 0)];  s_{k+1} = exp(-gamma h) s_k
+//!         u = u_ff - K (x_hat - x_ref),  K = (c Phi - exp(-gamma h) c) / (c Gamma)
+//! ```
+//! The controller never differences the load cell: the rate comes from the model state. The q,
+//! D (and resonator) entries of K cancel the estimated disturbance. With
+//! `controller.observer = "fdo"` the disturbance derivative D comes instead from a discrete
+//! fixed-time observer on the estimated q (its cubic gain capped at 300 1/s), for comparison.
+
+use super::discretize::{kalman_gain, SampledLti as SampledModel};
+use super::{ControlOutput, DiscreteController, Fdo, NominalModel, SampleInput, ValveLimit};
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+
+/// Which disturbance estimator `dtznn` uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EstimatorKind {
+    /// Kalman extended-state observer (the default).
+    #[default]
+    Eso,
+    /// A discrete fixed-time disturbance observer for D (comparison).
+    Fdo,
+}
+
+/// What the firmware knows of its sensors (for the Kalman measurement noise).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorModel {
+    /// Load-cell standard deviation (N): noise and quantisation (LSB/sqrt(12)).
+    pub force_sd_n: f64,
+    /// Spool sensor standard deviation (m), None without a spool sensor.
+    pub spool_sd_m: Option<f64>,
+}
+
+/// Settings of `dtznn`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DtZnnSettings {
+    /// ZNN design parameter gamma (1/s): closed-loop poles near exp(-gamma h).
+    pub gamma: f64,
+    /// Sample period h (s).
+    pub period_s: f64,
+    /// Delay (samples) the controller assumes in its readings.
+    pub delay_samples: usize,
+    /// Process noise spectral densities of [F, x_v, q, D] (units^2/s).
+    pub process_noise: [f64; 4],
+    /// Internal model of a periodic reference at this frequency (Hz), 0 = off.
+    pub resonator_hz: f64,
+    /// Disturbance estimator.
+    pub estimator: EstimatorKind,
+    /// The sensors.
+    pub sensors: SensorModel,
+    /// Valve command limit.
+    pub limit: ValveLimit,
+}
+
+/// The dtznn controller (a [`DiscreteController`]).
+#[derive(Debug, Clone)]
+pub struct DtZnn {
+    model: SampledModel,
+    n: usize,
+    c_meas: DMatrix<f64>,
+    l: DMatrix<f64>,
+    k: DVector<f64>,
+    lambda: f64,
+    s: DtZnnSettings,
+    nominal: NominalModel,
+    fdo: Option<(Fdo, f64)>,
+    // -- state --
+    prior: Option<DVector<f64>>,
+    delayed: DVector<f64>,
+    estimate: DVector<f64>,
+    commands: VecDeque<f64>,
+    v_prev: Option<f64>,
+    xv_ref: f64,
+    iterations: usize,
+}
+
+/// Continuous model matrices (A, B, E) of the controller's state.
+fn continuous_model(
+    c: &crate::hydraulics::Coefficients,
+    resonator_hz: f64,
+) -> (DMatrix<f64>, DVector<f64>, DVector<f64>) {
+    let n = if resonator_hz > 0.0 { 6 } else { 4 };
+    let mut a = DMatrix::zeros(n, n);
+    a[(0, 0)] = -c.n3;
+    a[(0, 1)] = c.n1;
+    a[(0, 2)] = 1.0;
+    a[(1, 1)] = -1.0 / c.tau_s;
+    a[(2, 3)] = 1.0;
+    if n == 6 {
+        let w = std::f64::consts::TAU * resonator_hz;
+        a[(0, 4)] = 1.0;
+        a[(4, 5)] = 1.0;
+        a[(5, 4)] = -w * w;
+    }
+    let mut b = DVector::zeros(n);
+    b[1] = c.k_s / c.tau_s;
+    let mut e = DVector::zeros(n);
+    e[0] = -c.n2;
+    (a, b, e)
+}
+
+impl DtZnn {
+    /// Design the controller from its nominal model: sampled model, Kalman gain, Zhang gain.
+    /// Errors when the design is impossible (the Riccati iteration does not converge).
+    pub fn new(nominal: NominalModel, s: DtZnnSettings) -> Result<Self, String> {
+        let c = &nominal.c;
+        let (a, b, e) = continuous_model(c, s.resonator_hz);
+        let n = a.nrows();
+        let h = s.period_s;
+        let model = SampledModel::new(&a, &b, &e, h);
+        // Measurements: force, and spool when there is a sensor.
+        let m = if s.sensors.spool_sd_m.is_some() { 2 } else { 1 };
+        let mut c_meas = DMatrix::zeros(m, n);
+        c_meas[(0, 0)] = 1.0;
+        let mut r = DMatrix::zeros(m, m);
+        r[(0, 0)] = s.sensors.force_sd_n.max(1e-6).powi(2);
+        if let Some(sd) = s.sensors.spool_sd_m {
+            c_meas[(1, 1)] = 1.0;
+            r[(1, 1)] = sd.max(1e-12).powi(2);
+        }
+        let mut qd = vec![s.process_noise[0], s.process_noise[1], s.process_noise[2], s.process_noise[3]];
+        if s.estimator == EstimatorKind::Fdo {
+            qd[3] = 0.0; // D comes from the FDO, not from the Kalman filter
+        }
+        if n == 6 {
+            qd.extend([0.0, s.process_noise[3]]);
+        }
+        let q = DMatrix::from_diagonal(&DVector::from_vec(qd)) * h;
+        let (l, _, iterations) =
+            kalman_gain(&model.phi, &c_meas, &q, &r, 200).ok_or("the Kalman (Riccati) iteration did not converge")?;
+        let mut cz = DVector::zeros(n);
+        cz[0] = s.gamma - c.n3;
+        cz[1] = c.n1;
+        cz[2] = 1.0;
+        if n == 6 {
+            cz[4] = 1.0;
+        }
+        let lambda = (-s.gamma * h).exp();
+        let cg = cz.dot(&model.gamma);
+        if cg.abs() < 1e-300 {
+            return Err("the valve does not reach the force within one sample (c . Gamma = 0)".into());
+        }
+        let k = (model.phi.transpose() * &cz - &cz * lambda) / cg;
+        let fdo = (s.estimator == EstimatorKind::Fdo).then(|| (Fdo::new(super::ObserverParams::default()), 0.0));
+        let commands = VecDeque::from(vec![0.0; s.delay_samples]);
+        Ok(Self {
+            model,
+            n,
+            c_meas,
+            l,
+            k,
+            lambda,
+            s,
+            nominal,
+            fdo,
+            prior: None,
+            delayed: DVector::zeros(n),
+            estimate: DVector::zeros(n),
+            commands,
+            v_prev: None,
+            xv_ref: 0.0,
+            iterations,
+        })
+    }
+
+    /// Start: the state estimate from the first reading, the reference state consistent with
+    /// the reference's rate (`xv_r = (dF_d/dt + n3 F_d + n2 v)/n1`).
+    fn start(&mut self, inp: &SampleInput, v: f64) {
+        let c = &self.nominal.c;
+        self.xv_ref = (inp.r.rate + c.n3 * inp.r.value + c.n2 * v) / c.n1;
+        let mut x = DVector::zeros(self.n);
+        x[0] = inp.y.force_n;
+        x[1] = if self.s.sensors.spool_sd_m.is_some() { inp.y.spool_m } else { self.xv_ref };
+        self.prior = Some(x);
+    }
+
+    /// Correct the prior of x(t_{k-d}) with the readings, predict to t_k; keep the next prior.
+    fn estimate(&mut self, inp: &SampleInput, v: f64, slope: f64) {
+        let mut y = DVector::zeros(self.c_meas.nrows());
+        y[0] = inp.y.force_n;
+        if y.len() > 1 {
+            y[1] = inp.y.spool_m;
+        }
+        let prior = self.prior.clone().unwrap_or_else(|| DVector::zeros(self.n));
+        let innovation = &y - &self.c_meas * &prior;
+        let mut delayed = &prior + &self.l * innovation;
+        if let Some((fdo, z)) = &mut self.fdo {
+            // Discrete FDO on q: D_hat = L psi(Xi), Xi = q_hat - z, backward-Euler-free capped gain.
+            let xi = delayed[2] - *z;
+            let d_hat = capped_estimate(fdo, xi);
+            *z += self.s.period_s * d_hat;
+            delayed[3] = d_hat;
+        }
+        let h = self.s.period_s;
+        let mut x = delayed.clone();
+        for (j, u) in self.commands.iter().enumerate() {
+            x = self.model.step(&x, *u, v + slope * j as f64 * h, slope);
+        }
+        self.delayed = delayed;
+        self.estimate = x;
+    }
+}
+
+/// The FDO's estimate with the local gain of its cubic term capped at 300 1/s: beyond
+/// |Xi| = 10 the cubic continues along its tangent.
+fn capped_estimate(fdo: &Fdo, xi: f64) -> f64 {
+    const XI_CAP: f64 = 10.0;
+    if xi.abs() <= XI_CAP {
+        return fdo.estimate(xi);
+    }
+    let edge = XI_CAP.copysign(xi);
+    fdo.estimate(edge) + fdo.estimate_slope(edge) * (xi - edge)
+}
+
+impl DiscreteController for DtZnn {
+    fn kind(&self) -> &'static str {
+        "dtznn"
+    }
+
+    fn update(&mut self, inp: &SampleInput) -> ControlOutput {
+        let h = self.s.period_s;
+        let d = self.s.delay_samples as f64;
+        // The piston velocity reading is d samples old; extrapolate it linearly.
+        let v = inp.y.piston_velocity_m_s;
+        let slope = self.v_prev.map_or(0.0, |p| (v - p) / h);
+        self.v_prev = Some(v);
+        if self.prior.is_none() {
+            self.start(inp, v + slope * d * h);
+        }
+        self.estimate(inp, v, slope);
+        // Reference preview through the sampled model.
+        let v_now = v + slope * d * h;
+        let (phi, gam) = (&self.model.phi, &self.model.gamma);
+        let g_v = self.model.g0[0] * v_now + self.model.g1[0] * slope;
+        let u_ff = (inp.r_next.value - phi[(0, 0)] * inp.r.value - phi[(0, 1)] * self.xv_ref - g_v) / gam[0];
+        let mut eps = self.estimate.clone();
+        eps[0] -= inp.r.value;
+        eps[1] -= self.xv_ref;
+        let u = self.s.limit.apply(ControlOutput { valve_command: u_ff - self.k.dot(&eps), ..Default::default() });
+        self.xv_ref = phi[(1, 1)] * self.xv_ref + gam[1] * u_ff;
+        // The next prior: x(t_{k-d+1}) from the command applied over [t_{k-d}, t_{k-d+1}).
+        let oldest = match self.commands.pop_front() {
+            Some(old) => {
+                self.commands.push_back(u.valve_command);
+                old
+            }
+            None => u.valve_command,
+        };
+        self.prior = Some(self.model.step(&self.delayed, oldest, v, slope));
+        // The lumped disturbance on dx2/dt the model estimates: D (+ r2 with the resonator).
+        let d_hat = self.estimate[3] + if self.n == 6 { self.estimate[5] } else { 0.0 };
+        ControlOutput { disturbance_estimate_n_per_s2: d_hat, rbf_output_n_per_s2: 0.0, ..u }
+    }
+
+    fn first_non_finite(&self) -> Option<(String, f64)> {
+        let names = [
+            "estimate_force_n",
+            "estimate_spool_m",
+            "estimate_q_n_per_s",
+            "estimate_d_n_per_s2",
+            "resonator_1",
+            "resonator_2",
+        ];
+        let i = self.estimate.iter().position(|v| !v.is_finite())?;
+        Some((names[i].to_string(), self.estimate[i]))
+    }
+
+    fn design(&self) -> Option<serde_json::Value> {
+        let v = |x: &DVector<f64>| x.iter().copied().collect::<Vec<f64>>();
+        let l: Vec<Vec<f64>> = (0..self.l.ncols()).map(|j| self.l.column(j).iter().copied().collect()).collect();
+        let states = ["F (N)", "x_v (m)", "q (N/s)", "D (N/s^2)", "resonator r1 (N/s)", "resonator r2 (N/s^2)"];
+        Some(serde_json::json!({
+            "states": &states[..self.n],
+            "sample_period_s": self.s.period_s,
+            "delay_samples": self.s.delay_samples,
+            "estimator": self.s.estimator,
+            "zhang_pole": self.lambda,
+            "zhang_gain_k": v(&self.k),
+            "kalman_gain_l_per_measurement": l,
+            "measurements": if self.c_meas.nrows() == 2 { vec!["force", "spool"] } else { vec!["force"] },
+            "riccati_iterations": self.iterations,
+            "phi": (0..self.n).map(|i| self.model.phi.row(i).iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),
+            "gamma": v(&self.model.gamma),
+        }))
+    }
+}
