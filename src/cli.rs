@@ -105,6 +105,10 @@ pub enum Command {
         /// Override any scenario key for all cases (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         sets: Vec<String>,
+        /// The firmware table instead: every controller at 1 kHz with 16-bit sensors and one
+        /// sample of delay, on the paper's bench cases and the shipped gait scenarios.
+        #[arg(long, conflicts_with_all = ["scenario", "plant"])]
+        firmware: bool,
     },
 }
 
@@ -294,6 +298,20 @@ fn cmd_compare(
     Ok(EXIT_OK)
 }
 
+/// `exoleg compare --firmware`.
+fn cmd_firmware(json: Option<PathBuf>, sets: Vec<String>) -> Result<i32> {
+    let rows = crate::study::firmware::run_table(&sets)?;
+    println!(
+        "Firmware conditions (1 kHz, zero-order hold, adc16, one sample of delay; bench cases at 0.1 ms steps).\n\
+         Each cell: max |F_L - F_d| / max after settling / RMS after settling (N), and the knee RMS / max (deg) for gait:"
+    );
+    print!("{}", crate::study::firmware::table(&rows));
+    if let Some(p) = json {
+        output::write_json(&p, &rows)?;
+    }
+    Ok(EXIT_OK)
+}
+
 /// Execute a parsed command line. Returns the process exit code on success.
 pub fn run(cli: Cli) -> Result<i32> {
     match cli.command {
@@ -304,6 +322,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Robustness { scenario, percent, samples, out, common } => {
             cmd_robustness(scenario, percent, samples, out, common)
         }
-        Command::Compare { scenario, plant, json, sets } => cmd_compare(scenario, plant, json, sets),
+        Command::Compare { firmware: true, json, sets, .. } => cmd_firmware(json, sets),
+        Command::Compare { scenario, plant, json, sets, .. } => cmd_compare(scenario, plant, json, sets),
     }
 }

@@ -185,6 +185,9 @@ impl DtZnn {
         let mut x = DVector::zeros(self.n);
         x[0] = inp.y.force_n;
         x[1] = if self.s.sensors.spool_sd_m.is_some() { inp.y.spool_m } else { self.xv_ref };
+        // Before t = 0 the valve was held where it is: the commands in flight hold the spool.
+        let hold = x[1] / c.k_s;
+        self.commands.iter_mut().for_each(|u| *u = hold);
         self.prior = Some(x);
     }
 

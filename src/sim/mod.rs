@@ -188,10 +188,19 @@ impl Simulation {
                 }
                 let d = Dynamics { sc: &self.sc, controller: None };
                 let s0 = d.evaluate(t, &self.state, self.plant.as_ref(), &self.held);
-                let y = sensors.sample(&d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), t));
-                // The outer loop compares each reading with the reference at the reading's time.
+                let y =
+                    sensors.sample(&d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held));
+                // The outer loop compares each reading with the reference at the reading's time,
+                // and takes the knee rate from the piston-velocity sensor when there is one
+                // (v / (dL/dq): no differencing lag), else from the encoder's difference.
                 let t_reading = (t - self.sc.sensors.delay_samples as f64 * sample_period).max(0.0);
-                self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, y.knee_rate_rad_s);
+                let knee_rate = match self.sc.leg() {
+                    Some(leg) if self.sc.sensors.piston_velocity.enabled => {
+                        y.piston_velocity_m_s / crate::leg::moment_arm_at(&leg.model, y.knee_rad)
+                    }
+                    _ => y.knee_rate_rad_s,
+                };
+                self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, knee_rate);
                 let r = d.reference_at(t, &self.held);
                 let r_next = d.reference_at(t + sample_period, &self.held);
                 let out = ctrl.update(&SampleInput { t_s: t, period_s: sample_period, y: &y, r, r_next });
@@ -206,7 +215,8 @@ impl Simulation {
                     let init = Held { output: Some(ControlOutput::default()), ..self.held };
                     let d = self.dynamics();
                     let s0 = d.evaluate(0.0, &self.state, self.plant.as_ref(), &init);
-                    let y0: Measurement = d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), 0.0).ideal();
+                    let y0: Measurement =
+                        d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), 0.0, &init).ideal();
                     let r0 = d.reference_at(0.0, &self.held);
                     let mut s = self.state.controller;
                     if let ControlBlock::Continuous(c) = &self.control {

@@ -92,16 +92,22 @@ impl Dynamics<'_> {
         (inp, x2, d_f_rate, d_mean)
     }
 
-    /// What ideal sensors read: the plant's state at `t` (the piston from the plant, not the
-    /// predictor) and the load cell's rate `x2`.
-    pub fn truth(&self, s: &State, x2: f64, plant: &dyn Plant, t: f64) -> Truth {
+    /// What ideal sensors read: the plant's state at `t`, the load cell's rate `x2`, and the
+    /// piston velocity the oil column experiences (with a predictor: the effective velocity of
+    /// the plant's integrator, including its substep lead; what a velocity sensor on the real
+    /// cylinder would measure).
+    pub fn truth(&self, s: &State, x2: f64, plant: &dyn Plant, t: f64, held: &Held) -> Truth {
         let p = plant.piston_at(t);
+        let v = match held.predictor.as_ref() {
+            Some(pred) => self.piston(t, s, plant, Some(pred)).velocity_m_s,
+            None => p.velocity_m_s,
+        };
         Truth {
             force_n: s.hyd.force_n,
             force_rate_n_per_s: x2,
             spool_m: s.hyd.spool_m,
             piston_m: p.position_m,
-            piston_velocity_m_s: p.velocity_m_s,
+            piston_velocity_m_s: v,
             piston_accel_m_s2: p.accel_m_s2,
             knee_rad: plant.knee_rad(),
             knee_rate_rad_s: plant.knee_rate_rad_s(),

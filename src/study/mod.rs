@@ -2,6 +2,7 @@
 //! parameter sweeps, the robustness report, and the gait-test API.
 
 pub mod compare;
+pub mod firmware;
 pub mod gait_test;
 pub mod robustness;
 mod single;

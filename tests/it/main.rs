@@ -5,6 +5,7 @@ mod common;
 mod architecture;
 mod bench_motion;
 mod cli;
+mod firmware;
 mod gait;
 mod hardening;
 mod hostile;
