@@ -55,9 +55,43 @@ impl FrictionParams {
     }
 }
 
+impl FrictionParams {
+    /// Friction force (N) and its first and second derivatives with respect to the velocity
+    /// (N s/m, N s^2/m^2), analytic.
+    pub fn force_and_derivatives(&self, v_m_s: f64) -> (f64, f64, f64) {
+        let (vs, eps) = (self.stribeck_velocity_m_s, self.smoothing_velocity_m_s);
+        let ds = self.static_n - self.coulomb_n;
+        let e = (-(v_m_s / vs).powi(2)).exp();
+        let level = self.coulomb_n + ds * e;
+        let level1 = ds * e * (-2.0 * v_m_s / (vs * vs));
+        let level2 = ds * e * (4.0 * v_m_s * v_m_s / (vs * vs * vs * vs) - 2.0 / (vs * vs));
+        let th = (v_m_s / eps).tanh();
+        let th1 = (1.0 - th * th) / eps;
+        let th2 = -2.0 * th * (1.0 - th * th) / (eps * eps);
+        (
+            level * th + self.viscous_n_s_per_m * v_m_s,
+            level1 * th + level * th1 + self.viscous_n_s_per_m,
+            level2 * th + 2.0 * level1 * th1 + level * th2,
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn second_derivative_matches_finite_difference() {
+        let f = FrictionParams::default();
+        for v in [-0.05, -1e-3, -5e-4, 0.0, 3e-4, 2e-3, 0.02] {
+            let h = 1e-7;
+            let fd = (f.slope_n_s_per_m(v + h) - f.slope_n_s_per_m(v - h)) / (2.0 * h);
+            let (f0, f1, f2) = f.force_and_derivatives(v);
+            assert_eq!(f0, f.force_n(v));
+            assert!((f1 - f.slope_n_s_per_m(v)).abs() < 1e-9 * f1.abs());
+            assert!((fd - f2).abs() < 1e-5 * fd.abs().max(1e3), "v={v}: {f2} vs {fd}");
+        }
+    }
 
     #[test]
     fn slope_matches_finite_difference() {

@@ -41,6 +41,17 @@ pub fn moment_arm_slope_at(model: &LegSpec, knee_rad: f64) -> f64 {
     a * b * gamma.cos() / l - s * s / (l * l * l)
 }
 
+/// Third derivative of the cylinder length, `d^3L/dtheta^3` (m/rad^3), analytic.
+pub fn moment_arm_curvature_at(model: &LegSpec, knee_rad: f64) -> f64 {
+    let (a, b, gamma) = triangle(model, knee_rad);
+    let l = (a * a + b * b - 2.0 * a * b * gamma.cos()).max(0.0).sqrt();
+    let sg = model.geo.knee_sign;
+    let (ab, (s, c)) = (a * b, gamma.sin_cos());
+    let l1 = sg * ab * s / l;
+    -sg * ab * s / l - ab * c * l1 / (l * l) - 2.0 * ab * ab * s * c * sg / (l * l * l)
+        + 3.0 * ab * ab * s * s * l1 / (l * l * l * l)
+}
+
 fn triangle(model: &LegSpec, knee_rad: f64) -> (f64, f64, f64) {
     let g = &model.geo;
     let pk = g.barrel_origin.t.minus(g.knee_origin.t); // knee -> pivot
@@ -289,6 +300,9 @@ mod tests {
                 let fd = (moment_arm_at(&m, q + h) - moment_arm_at(&m, q - h)) / (2.0 * h);
                 let exact = moment_arm_slope_at(&m, q);
                 assert!((fd - exact).abs() < 1e-8, "{name} at {deg} deg: {exact} vs {fd}");
+                let fd3 = (moment_arm_slope_at(&m, q + h) - moment_arm_slope_at(&m, q - h)) / (2.0 * h);
+                let exact3 = moment_arm_curvature_at(&m, q);
+                assert!((fd3 - exact3).abs() < 1e-7, "{name} at {deg} deg: {exact3} vs {fd3}");
             }
         }
     }

@@ -22,8 +22,8 @@ pub use error::LegError;
 pub use geometry::{
     cylinder_length_at, generalized_inertia_at, gravity_torque_at, hip_inverse_dynamics, hip_knee_mass_matrix_at,
     hip_rotated, holding_force_at, knee_forward_acceleration, knee_inverse_dynamics, link_poses_at,
-    link_poses_with_hip_at, loop_pose_at, moment_arm_at, moment_arm_slope_at, potential_energy_at,
-    potential_energy_with_hip_at, reduced_acceleration,
+    link_poses_with_hip_at, loop_pose_at, moment_arm_at, moment_arm_curvature_at, moment_arm_slope_at,
+    potential_energy_at, potential_energy_with_hip_at, reduced_acceleration,
 };
 pub use model::{ActuatorSpec, JointKind, JointSpec, LegSpec, LinkSpec, LoopClosureSpec, LoopPose};
 pub use rapier::{joint_origin_pose, HipCoupling, Leg, LegSolverParams, Pose};

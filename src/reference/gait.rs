@@ -70,6 +70,22 @@ impl FourierSeries {
         }
         (v, d1, d2)
     }
+
+    /// Value and first, second and third derivatives at `x`.
+    pub fn eval3(&self, x: f64) -> (f64, f64, f64, f64) {
+        let (mut v, mut d1, mut d2, mut d3) = (self.c0, 0.0, 0.0, 0.0);
+        let (s1, c1) = (self.w * x).sin_cos();
+        let (mut s, mut c) = (s1, c1);
+        for (k, (a, b)) in self.a.iter().zip(&self.b).enumerate() {
+            let kw = (k + 1) as f64 * self.w;
+            v += a * c + b * s;
+            d1 += kw * (b * c - a * s);
+            d2 -= kw * kw * (a * c + b * s);
+            d3 -= kw * kw * kw * (b * c - a * s);
+            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
+        }
+        (v, d1, d2, d3)
+    }
 }
 
 /// Most rows a gait CSV may have.
@@ -209,6 +225,13 @@ impl GaitReference {
     /// Desired knee flexion (rad) and its time derivatives at `t_s`.
     pub fn knee_at(&self, t_s: f64) -> RefSample {
         self.sample(&self.cycle.knee, t_s)
+    }
+
+    /// Desired knee flexion (rad) and its first three time derivatives at `t_s`.
+    pub fn knee_jerk_at(&self, t_s: f64) -> (f64, f64, f64, f64) {
+        let k = 100.0 / self.stride_s;
+        let (v, d1, d2, d3) = self.cycle.knee.eval3(t_s * k);
+        (v, d1 * k, d2 * k * k, d3 * k * k * k)
     }
 
     /// Hip flexion (rad) and its time derivatives at `t_s` (zero if the file has no hip column).

@@ -1,27 +1,33 @@
 //! From a knee trajectory to a desired actuator force: the outer loop of the cascade.
 //!
 //! ```text
-//! F_d(t) = F_ff(t) + F_pd
-//! F_ff(t) = tau_id(q_d, qd_d, qdd_d, hip(t)) / (dL/dq)(q_d) + F_f(v_d),  v_d = dL/dq * qd_d
-//! F_pd    = [k_p (q_d - q) + k_d (qd_d - qd)] / (dL/dq)(q)     (held between updates)
+//! F_d(t) = F_id(t) + F_f(v_d(t)) + F_pd
+//! F_id(t) = tau_id(q_d, qd_d, qdd_d, hip(t)) / (dL/dq)(q_d)       (Fourier fit over a stride)
+//! F_f(v_d)  friction at v_d = dL/dq(q_d) qd_d, added analytically with its time derivatives
+//! F_pd    = [k_p (q_d - q) + k_d (qd_d - qd)] / (dL/dq)(q)      (held between updates)
 //! ```
 //! `tau_id` is the inverse dynamics of the URDF leg's closed chain reduced to the knee
-//! (gravity, inertia, velocity terms, and hip motion when the hip is driven), so `F_ff` is the
-//! force the cylinder must deliver for the leg to follow the trajectory; the friction term
-//! adds what the piston seal takes. The inner force loop (ZNN family or ERL-SMC) tracks F_d
-//! exactly as in the paper. `F_ff` is tabulated over one stride and fitted with a periodic
-//! Fourier series, so its first and second time derivatives (needed by the force controllers)
-//! are analytic and smooth. The PD part's derivatives are taken as zero (it is updated once
-//! per step or sample). The PD itself is a controller (`control::KneePd`).
+//! (gravity, inertia, velocity terms, and hip motion when the hip is driven), so `F_id` is the
+//! force the cylinder must deliver for the leg to follow the trajectory. It is tabulated over
+//! one stride and fitted with a periodic Fourier series, so its first and second time
+//! derivatives (needed by the force controllers) are analytic and smooth. The seal friction
+//! is not fitted (its `tanh(v / 1 mm/s)` is a near-step at every velocity reversal that no
+//! Fourier series follows): it is added in closed form, with `dF_f/dt = F_f1(v) v1` and
+//! `d2F_f/dt2 = F_f2(v) v1^2 + F_f1(v) v2`, where F_f1, F_f2 are its derivatives in the
+//! velocity, `v1 = L2 qd^2 + L1 qdd`, `v2 = L3 qd^3 + 3 L2 qd qdd + L1 qddd`, and L1, L2, L3
+//! the first three derivatives of the cylinder length in the knee angle. The PD part's
+//! derivatives are taken as zero (it is updated once per step or sample). The PD itself is a
+//! controller (`control::KneePd`).
 
 use super::{FourierSeries, GaitReference, RefSample};
 use crate::error::{Error, Result};
 use crate::hydraulics::FrictionParams;
-use crate::leg::{knee_inverse_dynamics, moment_arm_at, LegSpec};
+use crate::leg::{knee_inverse_dynamics, moment_arm_at, moment_arm_curvature_at, moment_arm_slope_at, LegSpec};
+use std::sync::Arc;
 
-/// Harmonics of the Fourier fit of the feedforward force over one stride.
+/// Harmonics of the Fourier fit of the inverse-dynamics force over one stride.
 const FF_HARMONICS: usize = 48;
-/// Samples of the feedforward force over one stride.
+/// Samples of the inverse-dynamics force over one stride.
 const FF_SAMPLES: usize = 1024;
 
 /// Desired cylinder force along a gait trajectory.
@@ -29,14 +35,17 @@ const FF_SAMPLES: usize = 1024;
 pub struct KneeForceReference {
     /// The knee (and hip) trajectory.
     pub gait: GaitReference,
-    ff: FourierSeries,
+    id_fit: Arc<FourierSeries>,
+    model: Arc<LegSpec>,
+    friction: FrictionParams,
     drive_hip: bool,
 }
 
 impl KneeForceReference {
-    /// Build the feedforward from the leg model. `drive_hip`: include the hip trajectory in
-    /// the inverse dynamics (the thigh follows it).
-    pub fn new(gait: GaitReference, model: &LegSpec, friction: &FrictionParams, drive_hip: bool) -> Result<Self> {
+    /// The Fourier fit of the inverse-dynamics force `tau_id / (dL/dq)` over a stride (the
+    /// expensive part, shared by every run with the same leg, gait and hip motion).
+    /// `drive_hip`: include the hip trajectory in the inverse dynamics (the thigh follows it).
+    pub fn inverse_dynamics_fit(gait: &GaitReference, model: &LegSpec, drive_hip: bool) -> Result<FourierSeries> {
         let stride = gait.stride_s;
         let mut t = Vec::with_capacity(FF_SAMPLES);
         let mut f = Vec::with_capacity(FF_SAMPLES);
@@ -48,12 +57,35 @@ impl KneeForceReference {
                 knee_inverse_dynamics(model, (h.value, h.rate, h.accel), (k.value, k.rate, k.accel)).map_err(|e| {
                     Error::input("reference", "reference", format!("inverse dynamics at t = {ti:.4} s: {e}"))
                 })?;
-            let arm = moment_arm_at(model, k.value);
             t.push(ti);
-            f.push(tau / arm + friction.force_n(arm * k.rate));
+            f.push(tau / moment_arm_at(model, k.value));
         }
-        let ff = FourierSeries::fit(&t, &f, stride, FF_HARMONICS);
-        Ok(Self { gait, ff, drive_hip })
+        Ok(FourierSeries::fit(&t, &f, stride, FF_HARMONICS))
+    }
+
+    /// The reference from a fit made by [`Self::inverse_dynamics_fit`] with the same gait,
+    /// model and hip motion, and the seal friction to add.
+    pub fn new(
+        gait: GaitReference,
+        model: Arc<LegSpec>,
+        friction: FrictionParams,
+        drive_hip: bool,
+        id_fit: Arc<FourierSeries>,
+    ) -> Self {
+        Self { gait, id_fit, model, friction, drive_hip }
+    }
+
+    /// The seal friction along the trajectory, `F_f(v_d(t))` (N), with its first two time
+    /// derivatives.
+    pub fn friction_at(&self, t_s: f64) -> RefSample {
+        let (q, qd, qdd, qddd) = self.gait.knee_jerk_at(t_s);
+        let m = &self.model;
+        let (l1, l2, l3) = (moment_arm_at(m, q), moment_arm_slope_at(m, q), moment_arm_curvature_at(m, q));
+        let v = l1 * qd;
+        let v1 = l2 * qd * qd + l1 * qdd;
+        let v2 = l3 * qd * qd * qd + 3.0 * l2 * qd * qdd + l1 * qddd;
+        let (f, f1, f2) = self.friction.force_and_derivatives(v);
+        RefSample { value: f, rate: f1 * v1, accel: f2 * v1 * v1 + f1 * v2 }
     }
 
     /// Whether the hip is driven along the trial's hip angle.
@@ -61,9 +93,10 @@ impl KneeForceReference {
         self.drive_hip
     }
 
-    /// Feedforward force F_ff (N) and its first two time derivatives at `t_s`.
+    /// Feedforward force F_ff = F_id + F_f (N) and its first two time derivatives at `t_s`.
     pub fn feedforward_at(&self, t_s: f64) -> RefSample {
-        let (value, rate, accel) = self.ff.eval(t_s);
-        RefSample { value, rate, accel }
+        let (value, rate, accel) = self.id_fit.eval(t_s);
+        let f = self.friction_at(t_s);
+        RefSample { value: value + f.value, rate: rate + f.rate, accel: accel + f.accel }
     }
 }

@@ -5,7 +5,7 @@
 use crate::error::{Error, Result};
 use crate::leg::LegSpec;
 use crate::plant::{MassTable, BUILTIN_URDFS};
-use crate::reference::{GaitCycle, KneeForceReference, BUILTIN_TRIALS};
+use crate::reference::{FourierSeries, GaitCycle, BUILTIN_TRIALS};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -80,9 +80,9 @@ pub struct LoadedLeg {
     pub mass: Arc<MassTable>,
 }
 
-/// Key of a cached gait feedforward: (leg sha, knee joint, gait sha, harmonics, stride bits,
-/// hip driven, friction parameter bits).
-type CascadeKey = (String, String, String, usize, u64, bool, [u64; 5]);
+/// Key of a cached inverse-dynamics fit: (leg sha, knee joint, gait sha, harmonics, stride
+/// bits, hip driven).
+pub type CascadeKey = (String, String, String, usize, u64, bool);
 
 /// Parsed inputs shared by all runs of a process or sweep. Every entry is built the first
 /// time it is asked for and reused after; errors are not cached.
@@ -91,7 +91,7 @@ pub struct Resources {
     texts: Mutex<HashMap<String, InputText>>,
     legs: Mutex<HashMap<(String, String), Arc<LoadedLeg>>>,
     gaits: Mutex<HashMap<(String, usize), Arc<GaitCycle>>>,
-    cascades: Mutex<HashMap<CascadeKey, Arc<KneeForceReference>>>,
+    cascades: Mutex<HashMap<CascadeKey, Arc<FourierSeries>>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -167,12 +167,12 @@ impl Resources {
         Ok(g)
     }
 
-    /// A gait feedforward, built once per key with `build`.
+    /// A gait inverse-dynamics fit, built once per key with `build`.
     pub fn cascade(
         &self,
         key: CascadeKey,
-        build: impl FnOnce() -> Result<KneeForceReference>,
-    ) -> Result<Arc<KneeForceReference>> {
+        build: impl FnOnce() -> Result<FourierSeries>,
+    ) -> Result<Arc<FourierSeries>> {
         let mut c = lock(&self.cascades);
         if let Some(k) = c.get(&key) {
             return Ok(k.clone());

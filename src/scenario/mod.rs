@@ -104,6 +104,11 @@ pub struct ReferenceSection {
     pub harmonics: usize,
     /// Gait: drive the thigh along the trial's hip angle (kinematic hip joint). Default true.
     pub drive_hip: bool,
+    /// Gait: the smooth sign `tanh(v/eps)` of the seal friction the cascade compensates (m/s;
+    /// the cascade's own model of the friction, with the plant's levels). Default 0.005. > 0.
+    /// The plant's 1 mm/s makes F_d turn at every velocity reversal in ~0.1 ms, faster than any
+    /// force loop follows (the gait runs diverge); 5 mm/s tracks best.
+    pub friction_smoothing_velocity_m_s: f64,
     /// Gait: outer-loop proportional gain on the knee angle error (N m/rad). Default 400. >= 0.
     pub knee_kp_nm_per_rad: f64,
     /// Gait: outer-loop derivative gain on the knee rate error (N m s/rad). Default 15. >= 0.
@@ -125,6 +130,7 @@ impl Default for ReferenceSection {
             cadence_steps_per_min: None,
             harmonics: 12,
             drive_hip: true,
+            friction_smoothing_velocity_m_s: 0.005,
             knee_kp_nm_per_rad: 400.0,
             knee_kd_nm_s_per_rad: 15.0,
         }

@@ -6,7 +6,7 @@ use super::files::{InputText, Resources};
 use super::{ReferenceKind, Scenario, ScenarioFile};
 use crate::control::{ControllerKind, DtZnn, DtZnnSettings, KneePd, NominalModel, SensorModel, ValveLimit};
 use crate::error::{Error, Result};
-use crate::hydraulics::Cylinder;
+use crate::hydraulics::{Cylinder, FrictionParams};
 use crate::leg::LegSpec;
 use crate::metrics::{Band, MetricSettings};
 use crate::plant::{LegSetup, LegStart, PlantKind, PlantSetup};
@@ -144,7 +144,6 @@ impl Ctx<'_> {
                 let gait = self.gait()?;
                 check_gait_in_leg_range(self.src(), &gait, &leg.model)?;
                 let drive_hip = f.reference.drive_hip;
-                let fr = &f.friction;
                 let key = (
                     self.file.leg.urdf_sha256.clone().unwrap_or_default(),
                     f.leg.knee_joint.clone(),
@@ -152,16 +151,16 @@ impl Ctx<'_> {
                     f.reference.harmonics,
                     gait.stride_s.to_bits(),
                     drive_hip,
-                    [
-                        fr.coulomb_n.to_bits(),
-                        fr.static_n.to_bits(),
-                        fr.stribeck_velocity_m_s.to_bits(),
-                        fr.viscous_n_s_per_m.to_bits(),
-                        fr.smoothing_velocity_m_s.to_bits(),
-                    ],
                 );
                 let model = leg.model.clone();
-                let k = self.res.cascade(key, || KneeForceReference::new(gait, &model, fr, drive_hip))?;
+                let fit =
+                    self.res.cascade(key, || KneeForceReference::inverse_dynamics_fit(&gait, &model, drive_hip))?;
+                // The cascade's model of the seal friction: the plant's levels with its own smooth sign.
+                let fr = FrictionParams {
+                    smoothing_velocity_m_s: f.reference.friction_smoothing_velocity_m_s,
+                    ..f.friction.clone()
+                };
+                let k = Arc::new(KneeForceReference::new(gait, model, fr, drive_hip, fit));
                 Ok(ForceReference::Gait(k))
             }
         }

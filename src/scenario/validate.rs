@@ -166,6 +166,7 @@ fn reference(c: &Check, f: &ScenarioFile) -> Result<()> {
     if !(1..=40).contains(&rf.harmonics) {
         return Err(c.fail("reference.harmonics", format!("must be 1..=40, got {}", rf.harmonics)));
     }
+    c.positive("reference.friction_smoothing_velocity_m_s", rf.friction_smoothing_velocity_m_s)?;
     c.non_negative("reference.knee_kp_nm_per_rad", rf.knee_kp_nm_per_rad)?;
     c.non_negative("reference.knee_kd_nm_s_per_rad", rf.knee_kd_nm_s_per_rad)
 }

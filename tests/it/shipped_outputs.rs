@@ -8,6 +8,11 @@
 //!   taken from the URDF's fixed-joint chain instead of a round trip through Rapier's world
 //!   poses, and the gait feedforward's Fourier fit is a QR least squares instead of normal
 //!   equations. Every column moves by at most 4e-7 of its peak (force error by <= 1.9e-6 N).
+//! - gait_walk, gait_walk_fast (issue 12.5): the cascade fits only the inverse dynamics and
+//!   adds the seal friction in closed form (its own model, smooth sign 5 mm/s) instead of
+//!   fitting the sum, which was off by up to 29 N at every velocity reversal. F_d changes by up
+//!   to ~30 N near reversals; knee RMS 0.0089 -> 0.0098 deg (comfortable), force RMS after the
+//!   first stride 0.935 -> 1.034 N.
 
 use sha2::{Digest, Sha256};
 use std::path::Path;
@@ -15,8 +20,8 @@ use std::process::Command;
 
 const EXPECTED: [(&str, &str); 7] = [
     ("default", "f44c3f1360e7d92c6f7e608a92ce2474eac2d6bfd016c5904b33eddbd818a539"),
-    ("gait_walk", "5800ed098e38fe244493910ea12f289ef4779d9a83929a4c274a787530cb0267"),
-    ("gait_walk_fast", "cc9bc6e4ac9544872126c94dc133de8a5bbe04a2aefda9b111faac475c0e804d"),
+    ("gait_walk", "228e8d0463ae68ce45790e251fce18ebf6400187747d47aba1e2cd1f77abdca9"),
+    ("gait_walk_fast", "20c4fce776de2c1ef893dd41f428d0528fe71effad8151e16a8218669a5091cb"),
     ("paper_10hz_gamma200", "74c22657231e2ef80831ec8b5b6057cbedfbe0b500b5f59789dd5793a38f385c"),
     ("paper_10hz_gamma300", "814806aa8c7c34483868a89b6441064002bf264a183ccab5508bc0bb67a5fef8"),
     ("paper_2hz_gamma100", "4d2288b14a36198ad62a4f72887dd318270ad33fd15db751b8b631cce1a23e28"),
