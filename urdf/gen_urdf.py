@@ -22,6 +22,8 @@ DELEVA = {
     },
 }
 
+SOLE_RADIUS = 0.02  # m, heel and ball contact spheres
+
 def f(x):
     return f"{x:.6g}"
 
@@ -35,6 +37,10 @@ def tube(m, length, ro, ri):
     it = m * (length**2 / 12 + (ro**2 + ri**2) / 4)
     ia = m * (ro**2 + ri**2) / 2
     return it, ia
+
+def sphere(name, x, z, r):
+    return (f'    <collision name="{name}">\n      <origin xyz="{f(x)} 0 {f(z)}" rpy="0 0 0"/>\n'
+            f'      <geometry><sphere radius="{f(r)}"/></geometry>\n    </collision>\n')
 
 def gen(name, sex, body_m, stature, pivot, rod_end, barrel, rod, closed_len, stroke,
         barrel_axis="0 1 0", heel_back=0.05, foot_com_below_ankle=0.04):
@@ -55,8 +61,15 @@ def gen(name, sex, body_m, stature, pivot, rod_end, barrel, rod, closed_len, str
     # thigh: frame at hip joint centre, segment along -z. Sagittal radius -> rotation about y.
     out += '  <link name="thigh">\n' + inertial(t["m"], (0, 0, -t["c"]), t["Itr"], t["Isag"], t["Ilong"]) + '  </link>\n'
     out += '  <link name="shank">\n' + inertial(sh["m"], (0, 0, -sh["c"]), sh["Itr"], sh["Isag"], sh["Ilong"]) + '  </link>\n'
-    # foot: frame at ankle; long axis along +x, heel `heel_back` behind the ankle.
-    out += '  <link name="foot">\n' + inertial(ft["m"], (ft["c"] - heel_back, 0, -foot_com_below_ankle), ft["Ilong"], ft["Isag"], ft["Itr"]) + '  </link>\n'
+    # foot: frame at ankle; long axis along +x, heel `heel_back` behind the ankle. The sole
+    # touches the ground at the heel and at the ball (metatarsal heads, 75 % of the foot length
+    # from the heel); the ankle centre is 0.039 x stature above the ground (Winter 2009).
+    ankle_h = 0.039 * stature
+    r = SOLE_RADIUS
+    sole = (sphere("heel", -heel_back + r, -ankle_h + r, r)
+            + sphere("toe", -heel_back + 0.75 * ft["L"], -ankle_h + r, r))
+    out += ('  <link name="foot">\n' + inertial(ft["m"], (ft["c"] - heel_back, 0, -foot_com_below_ankle), ft["Ilong"], ft["Isag"], ft["Itr"])
+            + sole + '  </link>\n')
     # barrel: frame at its pivot, cylinder axis along -z of the frame; CoM at half length.
     out += '  <link name="barrel">\n' + inertial(bm, (0, 0, -bl / 2), b_it, b_it, b_ia) + '  </link>\n'
     # rod: frame at the rod eye (rod end), rod extends +z into the barrel.
@@ -64,8 +77,11 @@ def gen(name, sex, body_m, stature, pivot, rod_end, barrel, rod, closed_len, str
     out += (f'  <joint name="knee" type="revolute">\n    <parent link="thigh"/>\n    <child link="shank"/>\n'
             f'    <origin xyz="0 0 {f(-t["L"])}" rpy="0 0 0"/>\n    <axis xyz="0 1 0"/>\n'
             f'    <limit lower="0" upper="{f(math.radians(100))}" effort="300" velocity="10"/>\n  </joint>\n')
-    out += (f'  <joint name="ankle" type="fixed">\n    <parent link="shank"/>\n    <child link="foot"/>\n'
-            f'    <origin xyz="0 0 {f(-sh["L"])}" rpy="0 0 0"/>\n  </joint>\n')
+    # ankle: a hinge about -y, so its coordinate is dorsiflexion (toes up). Locked unless the
+    # scenario walks on the ground (leg.ankle = "free").
+    out += (f'  <joint name="ankle" type="revolute">\n    <parent link="shank"/>\n    <child link="foot"/>\n'
+            f'    <origin xyz="0 0 {f(-sh["L"])}" rpy="0 0 0"/>\n    <axis xyz="0 -1 0"/>\n'
+            f'    <limit lower="{f(math.radians(-40))}" upper="{f(math.radians(30))}" effort="200" velocity="10"/>\n  </joint>\n')
     out += (f'  <joint name="barrel_pivot" type="revolute">\n    <parent link="thigh"/>\n    <child link="barrel"/>\n'
             f'    <origin xyz="{f(pivot[0])} 0 {f(pivot[1])}" rpy="0 0 0"/>\n    <axis xyz="{barrel_axis}"/>\n'
             f'    <limit lower="-1" upper="1" effort="0" velocity="10"/>\n  </joint>\n')

@@ -25,5 +25,8 @@ pub use geometry::{
     link_poses_with_hip_at, loop_pose_at, moment_arm_at, moment_arm_curvature_at, moment_arm_slope_at,
     potential_energy_at, potential_energy_with_hip_at, reduced_acceleration,
 };
-pub use model::{ActuatorSpec, JointKind, JointSpec, LegSpec, LinkSpec, LoopClosureSpec, LoopPose};
+pub use model::{
+    ActuatorSpec, CollisionShape, CollisionSpec, JointKind, JointSpec, LegOptions, LegSpec, LinkSpec, LoopClosureSpec,
+    LoopPose,
+};
 pub use rapier::{joint_origin_pose, HipCoupling, Leg, LegSolverParams, Pose};

@@ -126,6 +126,72 @@ pub(crate) struct LoopGeometry {
     pub rod_point: P2,
 }
 
+/// How the loader treats the leg's joints.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LegOptions {
+    /// Name of the knee hinge. Default `knee`.
+    pub knee_joint: String,
+    /// Name of the ankle hinge (between the shank and the foot). Default `ankle`.
+    pub ankle_joint: String,
+    /// The ankle moves (ground contact); otherwise it is locked at 0 (treated as fixed).
+    pub ankle_free: bool,
+    /// Every link's mass and inertia scaled by this factor (> 0). Default 1.
+    pub mass_scale: f64,
+}
+
+impl Default for LegOptions {
+    fn default() -> Self {
+        Self { knee_joint: "knee".into(), ankle_joint: "ankle".into(), ankle_free: false, mass_scale: 1.0 }
+    }
+}
+
+/// A collision shape of a link (`<collision>`), in the link frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CollisionSpec {
+    /// Index of the link.
+    pub link: usize,
+    /// `<origin xyz>` (m).
+    pub origin_xyz: [f64; 3],
+    /// `<origin rpy>` (rad).
+    pub origin_rpy: [f64; 3],
+    /// The geometry.
+    pub shape: CollisionShape,
+}
+
+/// Collision geometry (URDF `<geometry>`), sizes in m.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CollisionShape {
+    /// Box with full edge lengths.
+    Box {
+        /// Edge lengths x, y, z (m).
+        size: [f64; 3],
+    },
+    /// Cylinder along the local z axis.
+    Cylinder {
+        /// Radius (m).
+        radius: f64,
+        /// Length (m).
+        length: f64,
+    },
+    /// Sphere.
+    Sphere {
+        /// Radius (m).
+        radius: f64,
+    },
+    /// Capsule along the local z axis (cylinder `length` with hemispherical ends).
+    Capsule {
+        /// Radius (m).
+        radius: f64,
+        /// Length of the cylindrical part (m).
+        length: f64,
+    },
+    /// A mesh file: not supported for contact (refused when the ground is on).
+    Mesh {
+        /// The file named.
+        filename: String,
+    },
+}
+
 /// Immutable, validated leg model: the parsed URDF plus the derived loop geometry.
 ///
 /// Build with [`LegSpec::from_urdf_file`] or [`LegSpec::from_urdf_str`].
@@ -145,6 +211,9 @@ pub struct LegSpec {
     pub(crate) closure: LoopClosureSpec,
     pub(crate) actuator: ActuatorSpec,
     pub(crate) geo: LoopGeometry,
+    /// The ankle joint when it moves.
+    pub(crate) ankle: Option<usize>,
+    pub(crate) collisions: Vec<CollisionSpec>,
 }
 
 /// Default knee range used for the stroke check when the knee joint has no limits, rad
@@ -159,10 +228,37 @@ impl LegSpec {
         Self::from_urdf_str(&text, knee_joint)
     }
 
-    /// Parse and validate URDF text. `knee_joint` names the knee hinge (usually `"knee"`).
-    /// See [`super::urdf`] for what is checked.
+    /// Parse and validate URDF text. `knee_joint` names the knee hinge (usually `"knee"`);
+    /// the ankle (if any) is locked. See [`super::urdf`] for what is checked.
     pub fn from_urdf_str(text: &str, knee_joint: &str) -> Result<Self, LegError> {
-        super::urdf::parse(text, knee_joint)
+        super::urdf::parse(text, &LegOptions { knee_joint: knee_joint.into(), ..Default::default() })
+    }
+
+    /// Parse and validate URDF text with explicit options.
+    pub fn from_urdf_with(text: &str, options: &LegOptions) -> Result<Self, LegError> {
+        super::urdf::parse(text, options)
+    }
+
+    /// The ankle joint, when it moves (`leg.ankle = "free"`).
+    pub fn ankle_joint(&self) -> Option<&JointSpec> {
+        self.ankle.map(|j| &self.joints[j])
+    }
+
+    /// The collision shapes of every link (used with ground contact).
+    pub fn collisions(&self) -> &[CollisionSpec] {
+        &self.collisions
+    }
+
+    /// Total mass of the links that are not the cylinder (thigh, shank, foot and what is
+    /// welded to them), kg: the leg the wearer brings.
+    pub fn leg_mass_kg(&self) -> f64 {
+        let cylinder = [self.joints[self.barrel].child, self.joints[self.rod].child];
+        self.links
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !cylinder.contains(&self.fixed_chain(*i).0))
+            .map(|(_, l)| l.mass_kg)
+            .sum()
     }
 
     /// The fixed-joint walk: from `link` up through fixed joints to the first link that moves

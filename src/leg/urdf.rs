@@ -19,8 +19,8 @@ use rapier3d_f64::glamx::{DMat3, DQuat, DSymmetricEigen3, DVec3, EulerRot};
 
 use super::error::LegError;
 use super::model::{
-    joint_origin, ActuatorSpec, JointKind, JointSpec, LegSpec, LinkSpec, LoopClosureSpec, LoopGeometry,
-    DEFAULT_KNEE_RANGE_RAD,
+    joint_origin, ActuatorSpec, CollisionShape, CollisionSpec, JointKind, JointSpec, LegOptions, LegSpec, LinkSpec,
+    LoopClosureSpec, LoopGeometry, DEFAULT_KNEE_RANGE_RAD,
 };
 use super::planar::{Pose2, P2};
 
@@ -37,8 +37,9 @@ const MAX_INERTIA_KG_M2: f64 = 1e4;
 /// Largest joint limit accepted (rad or m).
 const MAX_LIMIT: f64 = 1e4;
 
-/// Parse and validate URDF text into a leg model; `knee_joint` names the knee hinge.
-pub fn parse(text: &str, knee_joint: &str) -> Result<LegSpec, LegError> {
+/// Parse and validate URDF text into a leg model.
+pub fn parse(text: &str, options: &LegOptions) -> Result<LegSpec, LegError> {
+    let knee_joint = options.knee_joint.as_str();
     let opts = roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: MAX_XML_NODES, ..Default::default() };
     let doc = roxmltree::Document::parse_with_options(text, opts).map_err(|e| LegError::Xml(e.to_string()))?;
     check_nesting(&doc)?;
@@ -47,9 +48,18 @@ pub fn parse(text: &str, knee_joint: &str) -> Result<LegSpec, LegError> {
         return Err(LegError::Missing { what: "<robot> root element".into() });
     }
     let robot = urdf_rs::read_from_string(text).map_err(|e| LegError::Urdf(e.to_string()))?;
-    let links = links(&robot)?;
+    if !(options.mass_scale.is_finite() && options.mass_scale > 0.0) {
+        return Err(LegError::InvalidArgument(format!("mass scale must be > 0, got {}", options.mass_scale)));
+    }
+    let mut links = links(&robot)?;
+    for l in &mut links {
+        l.mass_kg *= options.mass_scale;
+        l.inertia_kg_m2 = l.inertia_kg_m2.map(|row| row.map(|x| x * options.mass_scale));
+    }
     let link_idx: HashMap<String, usize> = links.iter().enumerate().map(|(i, l)| (l.name.clone(), i)).collect();
-    let (joints, parent_joint) = joints(&robot, &link_idx)?;
+    let collisions = collisions(&robot)?;
+    let (mut joints, parent_joint) = joints(&robot, &link_idx)?;
+    let ankle = ankle(&mut joints, options)?;
     let joint_idx: HashMap<String, usize> = joints.iter().enumerate().map(|(i, j)| (j.name.clone(), i)).collect();
     let (root, topo_joints) = tree_order(&links, &joints, &parent_joint)?;
     let closure = loop_closure(robot_el, &link_idx)?;
@@ -61,7 +71,7 @@ pub fn parse(text: &str, knee_joint: &str) -> Result<LegSpec, LegError> {
     expect_kind(&joints[knee], "knee", JointKind::is_hinge, "revolute or continuous")?;
     check_planar(&joints)?;
     let rod = actuator.joint;
-    let barrel = check_topology(&links, &joints, &parent_joint, knee, rod, &actuator.name)?;
+    let barrel = check_topology(&links, &joints, &parent_joint, [knee, rod, ankle.unwrap_or(knee)], &actuator.name)?;
     let mut model = LegSpec {
         robot_name: robot.name.clone(),
         links,
@@ -75,6 +85,8 @@ pub fn parse(text: &str, knee_joint: &str) -> Result<LegSpec, LegError> {
         closure,
         actuator,
         geo: LoopGeometry::default(),
+        ankle,
+        collisions,
     };
     check_moving_bodies(&model)?;
     model.geo = loop_geometry(&model)?;
@@ -389,8 +401,7 @@ fn check_topology(
     links: &[LinkSpec],
     joints: &[JointSpec],
     parent_joint: &[Option<usize>],
-    knee: usize,
-    rod: usize,
+    [knee, rod, ankle]: [usize; 3],
     actuator: &str,
 ) -> Result<usize, LegError> {
     let barrel_link = joints[rod].parent;
@@ -407,10 +418,10 @@ fn check_topology(
         "revolute or continuous",
     )?;
     if let Some(j) =
-        joints.iter().enumerate().find(|(ji, j)| j.kind != JointKind::Fixed && ![knee, barrel, rod].contains(ji))
+        joints.iter().enumerate().find(|(ji, j)| j.kind != JointKind::Fixed && ![knee, barrel, rod, ankle].contains(ji))
     {
         return Err(LegError::Unsupported(format!(
-            "movable joint '{}' is neither the knee, the barrel pivot nor the actuator",
+            "movable joint '{}' is neither the knee, the ankle, the barrel pivot nor the actuator",
             j.1.name
         )));
     }
@@ -420,7 +431,7 @@ fn check_topology(
 /// Every moving body (a link on a movable joint with the links welded to it) needs mass and a
 /// positive definite inertia; massless frames and point masses on fixed joints are merged in.
 fn check_moving_bodies(m: &LegSpec) -> Result<(), LegError> {
-    for ji in [m.knee, m.barrel, m.rod] {
+    for ji in [m.knee, m.barrel, m.rod].into_iter().chain(m.ankle) {
         let body = m.joints[ji].child;
         let members: Vec<usize> = (0..m.links.len()).filter(|&l| m.fixed_chain(l).0 == body).collect();
         let (mass, inertia) = merged_mass_properties(m, &members);
@@ -468,6 +479,63 @@ fn merged_mass_properties(m: &LegSpec, members: &[usize]) -> (f64, [[f64; 3]; 3]
         a + *ii + (DMat3::IDENTITY * d.length_squared() - DMat3::from_cols(d * d.x, d * d.y, d * d.z)) * *mi
     });
     (mass, inertia.to_cols_array_2d())
+}
+
+/// The ankle: locked (a fixed joint for everything downstream) unless `ankle_free`; a free
+/// ankle must be a hinge from the knee's child (the shank, or a link welded to it) to the foot.
+fn ankle(joints: &mut [JointSpec], o: &LegOptions) -> Result<Option<usize>, LegError> {
+    let found = joints.iter().position(|j| j.name == o.ankle_joint);
+    match (found, o.ankle_free) {
+        (Some(a), false) => {
+            if joints[a].kind.is_hinge() {
+                joints[a].kind = JointKind::Fixed;
+            }
+            Ok(None)
+        }
+        (None, false) => Ok(None),
+        (None, true) => Err(LegError::UnknownJoint { element: "leg.ankle = \"free\"".into(), joint: o.ankle_joint.clone() }),
+        (Some(a), true) => {
+            expect_kind(&joints[a], "ankle (leg.ankle = \"free\")", JointKind::is_hinge, "revolute or continuous")?;
+            Ok(Some(a))
+        }
+    }
+}
+
+/// Every `<collision>` of every link, sizes checked (> 0, finite, sane).
+fn collisions(robot: &urdf_rs::Robot) -> Result<Vec<CollisionSpec>, LegError> {
+    let mut out = Vec::new();
+    for (li, l) in robot.links.iter().enumerate() {
+        for (ci, c) in l.collision.iter().enumerate() {
+            let el = format!("link '{}' <collision> {}", l.name, c.name.clone().unwrap_or_else(|| ci.to_string()));
+            let size = |what: &str, v: f64| -> Result<f64, LegError> {
+                let v = sane(&el, what, v, MAX_LENGTH_M)?;
+                if v <= 0.0 {
+                    return Err(LegError::Invalid { element: el.clone(), message: format!("{what} must be > 0, got {v}") });
+                }
+                Ok(v)
+            };
+            let shape = match &c.geometry {
+                urdf_rs::Geometry::Box { size: s } => {
+                    CollisionShape::Box { size: [size("box x", s.0[0])?, size("box y", s.0[1])?, size("box z", s.0[2])?] }
+                }
+                urdf_rs::Geometry::Cylinder { radius, length } => {
+                    CollisionShape::Cylinder { radius: size("radius", *radius)?, length: size("length", *length)? }
+                }
+                urdf_rs::Geometry::Capsule { radius, length } => {
+                    CollisionShape::Capsule { radius: size("radius", *radius)?, length: size("length", *length)? }
+                }
+                urdf_rs::Geometry::Sphere { radius } => CollisionShape::Sphere { radius: size("radius", *radius)? },
+                urdf_rs::Geometry::Mesh { filename, .. } => CollisionShape::Mesh { filename: filename.clone() },
+            };
+            out.push(CollisionSpec {
+                link: li,
+                origin_xyz: sane3(&el, "origin xyz", c.origin.xyz.0, MAX_LENGTH_M)?,
+                origin_rpy: sane3(&el, "origin rpy", c.origin.rpy.0, MAX_LIMIT)?,
+                shape,
+            });
+        }
+    }
+    Ok(out)
 }
 
 /// The planar loop geometry, everything in the root (thigh) frame.
