@@ -12,6 +12,7 @@
 //! lengthens the cylinder, gravity 9.81 m/s^2 along -z.
 
 pub mod error;
+pub mod ground;
 pub mod geometry;
 pub mod model;
 pub mod planar;
@@ -29,4 +30,5 @@ pub use model::{
     ActuatorSpec, CollisionShape, CollisionSpec, JointKind, JointSpec, LegOptions, LegSpec, LinkSpec, LoopClosureSpec,
     LoopPose,
 };
-pub use rapier::{joint_origin_pose, HipCoupling, Leg, LegSolverParams, Pose};
+pub use ground::{ContactReading, GroundConfig};
+pub use rapier::{joint_origin_pose, CarriageConfig, HipCoupling, Leg, LegForces, LegSolverParams, Mount, Pose};

@@ -21,6 +21,7 @@ use rapier3d_f64::prelude::{
 };
 
 use super::error::LegError;
+use super::ground::{insert_ground, read_contacts, Belt, ContactReading, GroundConfig};
 use super::model::{JointKind, JointSpec, LegSpec, GRAVITY_M_S2};
 
 /// Solver settings of [`Leg`].
@@ -59,6 +60,8 @@ pub enum HipCoupling {
 struct HipState {
     /// Multibody link id of the thigh (child of the hip joint).
     link: usize,
+    /// The joint is kinematic (driven); otherwise dynamic (carriage).
+    kinematic: bool,
     /// Generalized velocity applied in the previous step, rad/s.
     vel: f64,
     /// Hip acceleration to compensate in the next step, rad/s^2.
@@ -89,8 +92,77 @@ pub struct Leg {
     time: f64,
     last_dl: f64,
     last_dknee: f64,
-    /// `Some` when the thigh hangs on a kinematic hip joint (see [`Leg::with_hip`]).
+    /// `Some` when the thigh hangs on a hip joint: kinematic (see [`Leg::with_hip`]) or, on
+    /// the carriage, dynamic.
     hip: Option<HipState>,
+    /// The pelvis on its carriage (see [`Leg::with_config`]).
+    carriage: Option<CarriageState>,
+    /// Multibody link id of the foot when the ankle moves.
+    ankle_link: Option<usize>,
+    /// The ground collider and the belt.
+    ground: Option<Belt>,
+    /// What the ground did over the last step.
+    contact: ContactReading,
+}
+
+/// How the thigh is held.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Mount {
+    /// Welded to the world at the hip.
+    Fixed,
+    /// On a kinematic hip joint at the world origin (see [`Leg::with_hip`]).
+    Driven {
+        /// Initial hip flexion (rad).
+        hip_rad: f64,
+        /// Initial hip velocity (rad/s).
+        hip_vel_rad_s: f64,
+    },
+    /// On a dynamic hip joint of a pelvis that moves in the sagittal plane.
+    Carriage(CarriageConfig),
+}
+
+/// The pelvis carriage: a body free in x and z (rotation locked) that carries the thigh on a
+/// dynamic hip hinge about -y.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CarriageConfig {
+    /// Pelvis mass (kg): the body the leg carries.
+    pub pelvis_mass_kg: f64,
+    /// Initial hip flexion (rad).
+    pub hip_rad: f64,
+    /// Initial height of the hip centre (m, world z).
+    pub pelvis_height_m: f64,
+    /// The pelvis cannot move in x (static tests).
+    pub tether_locked: bool,
+    /// The hip joint is locked at `hip_rad` (static tests).
+    pub hip_locked: bool,
+}
+
+/// Everything that acts on the leg over one step besides gravity and the ground.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct LegForces {
+    /// Cylinder force (N, positive lengthens).
+    pub actuator_force_n: f64,
+    /// An external force on the shank: (point in the shank frame (m), force in world (N)).
+    pub shank_force: Option<([f64; 3], [f64; 3])>,
+    /// Torque across the hip (N m, flexion positive), carriage only.
+    pub hip_torque_nm: f64,
+    /// Torque across the knee (N m, flexion positive), e.g. the wearer's muscles.
+    pub knee_torque_nm: f64,
+    /// Torque across the ankle (N m, in its coordinate's direction: dorsiflexion positive).
+    pub ankle_torque_nm: f64,
+    /// Force on the pelvis (N, world x and z), carriage only.
+    pub pelvis_force_n: [f64; 2],
+}
+
+#[derive(Clone, Copy, Debug)]
+struct CarriageState {
+    pelvis: RigidBodyHandle,
+    hip_locked_rad: Option<f64>,
+}
+
+/// The pose of an URDF `<origin xyz rpy>`.
+pub fn pose_of(xyz: [f64; 3], rpy: [f64; 3]) -> Pose {
+    pose3(xyz, rpy)
 }
 
 fn pose3(xyz: [f64; 3], rpy: [f64; 3]) -> Pose {
@@ -129,12 +201,12 @@ fn new_world(dt_s: f64, params: LegSolverParams) -> PhysicsWorld {
     world
 }
 
-/// World poses of every link at joint coordinates `q` (3D forward kinematics), the thigh
-/// turned by the hip flexion `hip_rad` when the hip is driven.
-fn initial_poses(model: &LegSpec, q: &[f64], hip_rad: Option<f64>) -> Vec<Pose> {
+/// World poses of every link at joint coordinates `q` (3D forward kinematics), the thigh at
+/// `root` (turned by the hip flexion, raised on the carriage) when it is not welded at the origin.
+fn initial_poses(model: &LegSpec, q: &[f64], root: Option<Pose>) -> Vec<Pose> {
     let mut poses = vec![Pose::IDENTITY; model.links.len()];
-    if let Some(h0) = hip_rad {
-        poses[model.root] = Pose::from_rotation(DQuat::from_axis_angle(-DVec3::Y, h0));
+    if let Some(r) = root {
+        poses[model.root] = r;
     }
     for &ji in &model.topo_joints {
         let j = &model.joints[ji];
@@ -215,6 +287,47 @@ fn insert_hip(world: &mut PhysicsWorld, thigh: RigidBodyHandle) -> Result<(), Le
         .ok_or_else(|| LegError::Unsupported("Rapier refused the kinematic hip joint".into()))
 }
 
+/// The pelvis carriage: a fixed anchor at the origin, the pelvis on a multibody joint free in
+/// x and z (x locked too when the tether is), and the thigh on a dynamic hinge about -y (or
+/// welded at the initial hip angle). Returns the pelvis body.
+fn insert_carriage(world: &mut PhysicsWorld, thigh: RigidBodyHandle, c: &CarriageConfig) -> Result<RigidBodyHandle, LegError> {
+    let anchor = world.bodies.insert(RigidBodyBuilder::fixed().can_sleep(false).build());
+    let inertia = c.pelvis_mass_kg * 0.01;
+    let mp = MassProperties::new(DVec3::ZERO, c.pelvis_mass_kg, DVec3::splat(inertia));
+    let pelvis = world.bodies.insert(
+        RigidBodyBuilder::dynamic()
+            .translation(DVec3::new(0.0, 0.0, c.pelvis_height_m))
+            .additional_mass_properties(mp)
+            .can_sleep(false)
+            .build(),
+    );
+    let mut mask = JointAxesMask::LIN_Y | JointAxesMask::ANG_X | JointAxesMask::ANG_Y | JointAxesMask::ANG_Z;
+    if c.tether_locked {
+        mask |= JointAxesMask::LIN_X;
+    }
+    let slide = GenericJointBuilder::new(mask).contacts_enabled(false).build();
+    world
+        .multibody_joints
+        .insert(anchor, pelvis, slide, true)
+        .ok_or_else(|| LegError::Unsupported("Rapier refused the pelvis carriage".into()))?;
+    let align = Pose::from_rotation(DQuat::from_rotation_arc(DVec3::X, -DVec3::Y));
+    let hip = if c.hip_locked {
+        let turn = Pose::from_rotation(DQuat::from_axis_angle(-DVec3::Y, c.hip_rad));
+        GenericJointBuilder::new(JointAxesMask::LOCKED_FIXED_AXES).local_frame1(turn).contacts_enabled(false).build()
+    } else {
+        GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
+            .local_frame1(align)
+            .local_frame2(align)
+            .contacts_enabled(false)
+            .build()
+    };
+    world
+        .multibody_joints
+        .insert(pelvis, thigh, hip, true)
+        .ok_or_else(|| LegError::Unsupported("Rapier refused the hip joint".into()))?;
+    Ok(pelvis)
+}
+
 /// The movable URDF joints as multibody joints between the welded bodies.
 fn insert_joints(
     world: &mut PhysicsWorld,
@@ -263,17 +376,20 @@ impl LinkIds {
     }
 }
 
-/// Displace the multibody joints (which start at 0) to the loop solution `q`, set the URDF's
-/// damping (not Rapier's default 0.1 N m s/rad) and the initial velocities (the hip's, if
-/// driven).
-fn set_initial_state(
-    world: &mut PhysicsWorld,
-    model: &LegSpec,
-    ids: &LinkIds,
-    link_body: &[RigidBodyHandle],
-    q: &[f64],
+/// The initial joint state besides the leg's own joints.
+struct InitialState<'a> {
+    /// Joint coordinates of the leg (loop solution).
+    q: &'a [f64],
+    /// Hip flexion and its velocity (rad, rad/s) on a hip joint (driven or carriage).
     hip: Option<(f64, f64)>,
-) {
+    /// The carriage: its multibody link and configuration.
+    carriage: Option<(Option<usize>, CarriageConfig)>,
+}
+
+/// Displace the multibody joints (which start at 0) to the loop solution, the hip angle and
+/// the pelvis height; set the URDF's damping (not Rapier's default 0.1 N m s/rad) and the
+/// initial velocities (the hip's, if driven).
+fn set_initial_state(world: &mut PhysicsWorld, model: &LegSpec, ids: &LinkIds, link_body: &[RigidBodyHandle], init: &InitialState) {
     let joint_links: Vec<(usize, usize)> = model
         .topo_joints
         .iter()
@@ -288,18 +404,24 @@ fn set_initial_state(
     let aid = |mb: &Multibody, lid: usize| mb.link(lid).map(|l| l.assembly_id());
     for &(ji, lid) in &joint_links {
         if let Some(a) = aid(multibody, lid) {
-            disp[a] = q[ji];
+            disp[a] = init.q[ji];
             damping[a] = model.joints[ji].damping;
         }
     }
-    let hip_aid = ids.hip.and_then(|l| aid(multibody, l));
-    if let (Some(a), Some((h0, _))) = (hip_aid, hip) {
+    let hip_aid = if init.hip.is_some() { ids.hip.and_then(|l| aid(multibody, l)) } else { None };
+    if let (Some(a), Some((h0, _))) = (hip_aid, init.hip) {
         disp[a] = h0;
+    }
+    if let Some((Some(link), c)) = init.carriage {
+        // The carriage's free coordinates in axis order: x (unless locked), then z.
+        if let Some(a) = aid(multibody, link) {
+            disp[a + usize::from(!c.tether_locked)] = c.pelvis_height_m;
+        }
     }
     multibody.apply_displacements(&disp);
     multibody.damping_mut().copy_from_slice(&damping);
     multibody.generalized_velocity_mut().fill(0.0);
-    if let (Some(a), Some((_, v0))) = (hip_aid, hip) {
+    if let (Some(a), Some((_, v0))) = (hip_aid, init.hip) {
         multibody.generalized_velocity_mut()[a] = v0;
     }
     multibody.forward_kinematics(&world.bodies, false);
@@ -338,7 +460,7 @@ impl Leg {
         dt_s: f64,
         params: LegSolverParams,
     ) -> Result<Self, LegError> {
-        Self::build(model, initial_knee_rad, None, dt_s, params)
+        Self::build(model, initial_knee_rad, Mount::Fixed, dt_s, params, None)
     }
 
     /// Builds the simulation with a driven hip: a fixed "pelvis" body (no mass) at the world
@@ -359,15 +481,36 @@ impl Leg {
         if !(initial_hip_rad.is_finite() && initial_hip_vel_rad_s.is_finite()) {
             return Err(LegError::InvalidArgument("initial hip state is not finite".into()));
         }
-        Self::build(model, initial_knee_rad, Some((initial_hip_rad, initial_hip_vel_rad_s)), dt_s, params)
+        let mount = Mount::Driven { hip_rad: initial_hip_rad, hip_vel_rad_s: initial_hip_vel_rad_s };
+        Self::build(model, initial_knee_rad, mount, dt_s, params, None)
+    }
+
+    /// Builds the simulation with any mount of the thigh and, optionally, the ground (see
+    /// [`Mount`], [`GroundConfig`]). The ankle moves when the model's ankle is free.
+    pub fn with_config(
+        model: &LegSpec,
+        initial_knee_rad: f64,
+        mount: Mount,
+        dt_s: f64,
+        params: LegSolverParams,
+        ground: Option<&GroundConfig>,
+    ) -> Result<Self, LegError> {
+        if let Mount::Carriage(c) = &mount {
+            let ok = [c.pelvis_mass_kg, c.hip_rad, c.pelvis_height_m].iter().all(|v| v.is_finite()) && c.pelvis_mass_kg > 0.0;
+            if !ok {
+                return Err(LegError::InvalidArgument(format!("carriage {c:?}: finite values and a positive pelvis mass")));
+            }
+        }
+        Self::build(model, initial_knee_rad, mount, dt_s, params, ground)
     }
 
     fn build(
         model: &LegSpec,
         initial_knee_rad: f64,
-        hip: Option<(f64, f64)>,
+        mount: Mount,
         dt_s: f64,
         params: LegSolverParams,
+        ground: Option<&GroundConfig>,
     ) -> Result<Self, LegError> {
         if !(dt_s.is_finite() && dt_s > 0.0) {
             return Err(LegError::InvalidArgument(format!("dt_s must be > 0, got {dt_s}")));
@@ -378,11 +521,24 @@ impl Leg {
         let q = model.joint_coords(&model.loop_solution_checked(initial_knee_rad)?);
         let mut world = new_world(dt_s, params);
         let welds = Welds::new(model);
-        let poses = initial_poses(model, &q, hip.map(|h| h.0));
-        let (link_body, bodies) = insert_bodies(&mut world, model, &welds, &poses, hip.is_some());
-        if hip.is_some() {
-            insert_hip(&mut world, link_body[model.root])?;
-        }
+        let root = match mount {
+            Mount::Fixed => None,
+            Mount::Driven { hip_rad, .. } => Some(Pose::from_rotation(DQuat::from_axis_angle(-DVec3::Y, hip_rad))),
+            Mount::Carriage(c) => Some(Pose::from_parts(
+                DVec3::new(0.0, 0.0, c.pelvis_height_m),
+                DQuat::from_axis_angle(-DVec3::Y, c.hip_rad),
+            )),
+        };
+        let poses = initial_poses(model, &q, root);
+        let (link_body, bodies) = insert_bodies(&mut world, model, &welds, &poses, root.is_some());
+        let pelvis = match mount {
+            Mount::Fixed => None,
+            Mount::Driven { .. } => {
+                insert_hip(&mut world, link_body[model.root])?;
+                None
+            }
+            Mount::Carriage(c) => Some(insert_carriage(&mut world, link_body[model.root], &c)?),
+        };
         insert_joints(&mut world, model, &welds, &link_body)?;
         let c = &model.closure;
         let (anchor1, anchor2) = (DVec3::from(c.anchor1_m), DVec3::from(c.anchor2_m));
@@ -393,8 +549,26 @@ impl Leg {
         let closure = world.impulse_joints.insert(link_body[c.link1], link_body[c.link2], sj, true);
         let rod_child = model.joints[model.rod].child;
         let rod_anchor_is_1 = welds.anchor[c.link1] == welds.anchor[rod_child];
-        let ids = LinkIds::find(&world, model, &link_body, hip.is_some())?;
-        set_initial_state(&mut world, model, &ids, &link_body, &q, hip);
+        let belt = match ground {
+            Some(g) => Some(Belt {
+                ground: insert_ground(&mut world, model, &link_body, &welds.offset, g)?,
+                speed_m_s: g.belt_speed_m_s,
+            }),
+            None => None,
+        };
+        let ids = LinkIds::find(&world, model, &link_body, root.is_some())?;
+        let hip_init = match mount {
+            Mount::Fixed => None,
+            Mount::Driven { hip_rad, hip_vel_rad_s } => Some((hip_rad, hip_vel_rad_s)),
+            Mount::Carriage(c) => (!c.hip_locked).then_some((c.hip_rad, 0.0)),
+        };
+        let carriage = pelvis.zip(match mount {
+            Mount::Carriage(c) => Some(c),
+            _ => None,
+        });
+        let carriage_link = carriage.and_then(|(p, _)| world.multibody_joints.rigid_body_link(p).map(|l| l.id));
+        let init = InitialState { q: &q, hip: hip_init, carriage: carriage.map(|(_, c)| (carriage_link, c)) };
+        set_initial_state(&mut world, model, &ids, &link_body, &init);
         // Rapier applies the user-provided mass properties lazily, in the first pipeline step
         // (before it, `mass() == 0` and `world_com` is the body origin, which would give
         // `add_force_at_point` a wrong lever arm). A zero-dt step applies these user changes
@@ -402,12 +576,19 @@ impl Leg {
         world.integration_parameters.dt = 0.0;
         world.step();
         world.integration_parameters.dt = dt_s;
-        let hip = ids.hip.zip(hip).map(|(link, (_, v0))| HipState {
+        let kinematic = matches!(mount, Mount::Driven { .. });
+        let hip = ids.hip.zip(hip_init).map(|(link, (_, v0))| HipState {
             link,
+            kinematic,
             vel: v0,
             accel: 0.0,
             coupling: HipCoupling::default(),
         });
+        let ankle_link = model
+            .ankle_joint()
+            .and_then(|j| world.multibody_joints.rigid_body_link(link_body[j.child]).map(|l| l.id));
+        let carriage =
+            carriage.map(|(pelvis, c)| CarriageState { pelvis, hip_locked_rad: c.hip_locked.then_some(c.hip_rad) });
         Ok(Leg {
             model: model.clone(),
             world,
@@ -427,6 +608,10 @@ impl Leg {
             last_dl: 0.0,
             last_dknee: 0.0,
             hip,
+            carriage,
+            ankle_link,
+            ground: belt,
+            contact: ContactReading::default(),
         })
     }
 
@@ -481,11 +666,14 @@ impl Leg {
 
     /// Whether the hip is driven (built with [`Leg::with_hip`]).
     pub fn has_hip(&self) -> bool {
-        self.hip.is_some()
+        self.hip.is_some() || self.carriage.is_some()
     }
 
     /// Hip flexion angle (kinematic joint coordinate), rad; 0 for a fixed thigh.
     pub fn hip_angle_rad(&self) -> f64 {
+        if let Some(h) = self.carriage.and_then(|c| c.hip_locked_rad) {
+            return h;
+        }
         self.hip.map_or(0.0, |h| self.coord(h.link, JointKind::Revolute))
     }
 
@@ -512,6 +700,7 @@ impl Leg {
         let h = self
             .hip
             .as_mut()
+            .filter(|h| h.kinematic)
             .ok_or_else(|| LegError::InvalidArgument("the leg has no driven hip (use Leg::with_hip)".into()))?;
         if !velocity_rad_s.is_finite() {
             return Err(LegError::InvalidArgument("hip velocity is not finite".into()));
@@ -602,6 +791,15 @@ impl Leg {
     /// (shank), then steps Rapier. With a driven hip ([`Leg::with_hip`]) it also applies the
     /// d'Alembert wrenches of the hip acceleration set since the last step (see [`HipCoupling`]).
     pub fn step(&mut self, actuator_force_n: f64, shank_force: Option<([f64; 3], [f64; 3])>) {
+        self.step_with(&LegForces { actuator_force_n, shank_force, ..Default::default() })
+    }
+
+    /// Advances by one step with every force of [`LegForces`]: the cylinder pair and the shank
+    /// force as [`Leg::step`], torques across the hip (carriage), knee and ankle as equal and
+    /// opposite pairs on the bodies they join, and the force on the pelvis. With the ground,
+    /// the contacts of the step are read afterwards ([`Leg::contact`]).
+    pub fn step_with(&mut self, forces: &LegForces) {
+        let (actuator_force_n, shank_force) = (forces.actuator_force_n, forces.shank_force);
         let l0 = self.cylinder_length_m();
         let k0 = self.knee_angle_rad();
         for &h in &self.bodies {
@@ -629,13 +827,91 @@ impl Leg {
             let pw = self.world_point(shank, DVec3::from(p));
             self.world.bodies[self.link_body[shank]].add_force_at_point(DVec3::from(f), pw, true);
         }
-        self.world.step();
+        self.apply_walking_forces(forces);
+        match &self.ground {
+            Some(belt) => self.world.step_with_events(belt, &()),
+            None => self.world.step(),
+        }
+        if let Some(belt) = &self.ground {
+            self.contact = read_contacts(&self.world, belt.ground, self.dt);
+        }
         if let Some(h) = &mut self.hip {
             h.accel = 0.0;
         }
         self.time += self.dt;
         self.last_dl = self.cylinder_length_m() - l0;
         self.last_dknee = self.knee_angle_rad() - k0;
+    }
+
+    /// Torque pairs across the hip, knee and ankle, and the pelvis force (zero ones skipped).
+    fn apply_walking_forces(&mut self, f: &LegForces) {
+        let knee = &self.model.joints[self.model.knee];
+        let (shank, thigh) = (knee.child, knee.parent);
+        if f.knee_torque_nm != 0.0 {
+            let axis = self.link_pose(shank).rotation * DVec3::from(knee.axis);
+            self.torque_pair(shank, thigh, axis * f.knee_torque_nm);
+        }
+        if let (Some(a), true) = (self.model.ankle_joint().cloned(), f.ankle_torque_nm != 0.0) {
+            let axis = self.link_pose(a.child).rotation * DVec3::from(a.axis);
+            self.torque_pair(a.child, a.parent, axis * f.ankle_torque_nm);
+        }
+        if let Some(c) = self.carriage {
+            if f.hip_torque_nm != 0.0 {
+                let t = -DVec3::Y * f.hip_torque_nm;
+                self.world.bodies[self.link_body[self.model.root]].add_torque(t, true);
+                self.world.bodies[c.pelvis].add_torque(-t, true);
+            }
+            if f.pelvis_force_n != [0.0, 0.0] {
+                let force = DVec3::new(f.pelvis_force_n[0], 0.0, f.pelvis_force_n[1]);
+                self.world.bodies[c.pelvis].add_force(force, true);
+            }
+        }
+    }
+
+    /// `torque` on the body of `on`, its opposite on the body of `from` (world frame).
+    fn torque_pair(&mut self, on: usize, from: usize, torque: DVec3) {
+        self.world.bodies[self.link_body[on]].add_torque(torque, true);
+        self.world.bodies[self.link_body[from]].add_torque(-torque, true);
+    }
+
+    /// What the ground did over the last step (zero without ground).
+    pub fn contact(&self) -> ContactReading {
+        self.contact
+    }
+
+    /// Ankle angle (rad, in its coordinate's direction) when the ankle moves, else 0.
+    pub fn ankle_angle_rad(&self) -> f64 {
+        self.ankle_link.map_or(0.0, |l| self.coord(l, JointKind::Revolute))
+    }
+
+    /// Ankle rate (rad/s) when the ankle moves, else 0.
+    pub fn ankle_velocity_rad_s(&self) -> f64 {
+        self.ankle_link.map_or(0.0, |l| self.gen_vel(l))
+    }
+
+    /// The pelvis (hip centre) position (world x, z in m) and velocity (m/s); the origin at
+    /// rest without a carriage.
+    pub fn pelvis_state(&self) -> ([f64; 2], [f64; 2]) {
+        match self.carriage {
+            None => ([0.0; 2], [0.0; 2]),
+            Some(c) => {
+                let rb = &self.world.bodies[c.pelvis];
+                let (p, v) = (rb.translation(), rb.linvel());
+                ([p.x, p.z], [v.x, v.z])
+            }
+        }
+    }
+
+    /// Total linear momentum of every body (kg m/s, world x and z).
+    pub fn momentum(&self) -> [f64; 2] {
+        let mut p = DVec3::ZERO;
+        for h in self.bodies.iter().copied().chain(self.carriage.map(|c| c.pelvis)) {
+            let rb = &self.world.bodies[h];
+            if rb.is_dynamic() {
+                p += rb.linvel() * rb.mass();
+            }
+        }
+        [p.x, p.z]
     }
 
     /// d'Alembert wrench of a hip angular acceleration `accel` (rad/s^2, flexion positive) on
