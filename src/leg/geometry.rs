@@ -307,3 +307,53 @@ mod tests {
         }
     }
 }
+
+/// Where the foot is for a hip, knee and ankle angle (rad; hip and knee flexion, ankle
+/// dorsiflexion positive), in the hip frame (hip at the origin, z up, m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FootPoints {
+    /// The ankle joint centre (the origin of the ankle's child link).
+    pub ankle: super::planar::P2,
+    /// The lowest point of any collision shape (the sole's contact point on flat ground).
+    pub lowest: super::planar::P2,
+}
+
+/// The ankle centre and the lowest collision point for hip flexion `hip_rad`, knee flexion
+/// `knee_rad` and ankle dorsiflexion `ankle_rad` (used only when the model's ankle moves).
+/// Spheres and capsules count with their radius, boxes and cylinders by the corners of their
+/// sagittal outline; meshes are skipped. None when the model has no collision shapes or the
+/// loop cannot close at `knee_rad`.
+pub fn foot_points_at(model: &LegSpec, hip_rad: f64, knee_rad: f64, ankle_rad: f64) -> Option<FootPoints> {
+    use super::model::CollisionShape as S;
+    use super::planar::P2;
+    let mut q = model.joint_coords(&model.loop_solution(knee_rad)?);
+    if let Some(a) = model.ankle {
+        q[a] = ankle_rad;
+    }
+    let poses: Vec<Pose2> = model.link_poses(&q).iter().map(|p| hip_rotated(hip_rad, p)).collect();
+    let foot = model.ankle.map_or_else(|| model.joints[model.knee].child, |a| model.joints[a].child);
+    let mut lowest: Option<P2> = None;
+    for c in &model.collisions {
+        let pose = poses[c.link].mul(&Pose2::new(c.origin_xyz[0], c.origin_xyz[2], c.origin_rpy[1]));
+        let (corners, radius): (Vec<P2>, f64) = match &c.shape {
+            S::Sphere { radius } => (vec![P2::default()], *radius),
+            S::Capsule { radius, length } => (vec![P2::new(0.0, length / 2.0), P2::new(0.0, -length / 2.0)], *radius),
+            S::Box { size } => {
+                let (x, z) = (size[0] / 2.0, size[2] / 2.0);
+                (vec![P2::new(x, z), P2::new(-x, z), P2::new(x, -z), P2::new(-x, -z)], 0.0)
+            }
+            S::Cylinder { radius, length } => {
+                let (x, z) = (*radius, length / 2.0);
+                (vec![P2::new(x, z), P2::new(-x, z), P2::new(x, -z), P2::new(-x, -z)], 0.0)
+            }
+            S::Mesh { .. } => continue,
+        };
+        for k in corners {
+            let p = pose.apply(k).minus(P2::new(0.0, radius));
+            if lowest.is_none_or(|l| p.z < l.z) {
+                lowest = Some(p);
+            }
+        }
+    }
+    Some(FootPoints { ankle: poses[foot].t, lowest: lowest? })
+}

@@ -21,6 +21,11 @@ pub struct GroundConfig {
     pub friction: f64,
     /// Belt speed (m/s, positive moves the surface toward -x, under a person walking to +x).
     pub belt_speed_m_s: f64,
+    /// Natural frequency of the contact constraint's regularisation (Hz): Rapier's contacts
+    /// are soft springs; stiffer ones penetrate less under the body's weight.
+    pub contact_frequency_hz: f64,
+    /// Damping ratio of the contact constraint's regularisation (-).
+    pub contact_damping_ratio: f64,
 }
 
 /// The treadmill: every contact with the ground gets the belt's velocity as its tangent
@@ -56,6 +61,8 @@ pub struct ContactReading {
     /// Centre of pressure (world x, z in m): the contact points weighted by their normal
     /// impulses (None without contact).
     pub cop_m: Option<[f64; 2]>,
+    /// Moment of the ground reaction about the world origin (N m, about +y).
+    pub moment_origin_y_nm: f64,
 }
 
 /// Collision groups: the sole collides with the ground only.
@@ -94,7 +101,8 @@ pub(super) fn insert_ground(
             }
             _ => shape.position(local),
         };
-        let collider = shape.density(0.0).friction(g.friction).collision_groups(groups(Group::GROUP_1, Group::GROUP_2)).build();
+        let collider =
+            shape.density(0.0).friction(g.friction).collision_groups(groups(Group::GROUP_1, Group::GROUP_2)).build();
         world.colliders.insert_with_parent(collider, link_body[c.link], &mut world.bodies);
     }
     let body = world.bodies.insert(RigidBodyBuilder::fixed().build());
@@ -113,22 +121,33 @@ pub(super) fn read_contacts(world: &PhysicsWorld, ground: ColliderHandle, dt_s: 
     let mut r = ContactReading::default();
     let (mut cop, mut lambda_sum) = ([0.0f64; 2], 0.0);
     for pair in world.narrow_phase.contact_pairs_with(ground) {
-        // Impulses are applied to the first collider's body: flip them onto the foot.
-        let sign = if pair.collider1 == ground { -1.0 } else { 1.0 };
+        // The manifold normal points from the first collider to the second and the impulses
+        // push the second one along it: with the ground first they act on the foot as they are.
+        let sign = if pair.collider1 == ground { 1.0 } else { -1.0 };
         for m in pair.manifolds() {
             let n = m.data.normal * sign;
             let (c1, c2) = (world.colliders.get(pair.collider1), world.colliders.get(pair.collider2));
             for p in &m.points {
                 r.penetration_m = r.penetration_m.max(-p.dist);
                 let lambda = p.data.impulse;
-                let tangent = p.data.warmstart_tangent_world * sign;
-                r.vertical_n += (n.z * lambda + tangent.z) / dt_s;
-                r.horizontal_n += (n.x * lambda + tangent.x) / dt_s;
+                // `tangent_impulse` is the step's total friction impulse in the constraint's
+                // tangent basis, which is not kept; `warmstart_tangent_world` is the last
+                // substep's in world axes, in the same basis. In the sagittal plane both lie
+                // along the one tangent direction, so the total is the world vector scaled by
+                // their ratio. Friction acts on the foot opposite to the normal's convention.
+                let (total, last) = (p.data.tangent_impulse, p.data.warmstart_tangent_impulse);
+                let last2 = last.norm_squared();
+                let ratio = if last2 > 0.0 { total.dot(&last) / last2 } else { 0.0 };
+                let tangent = -p.data.warmstart_tangent_world * ratio * sign;
+                let f = (n * lambda + tangent) / dt_s;
+                r.vertical_n += f.z;
+                r.horizontal_n += f.x;
                 let world_point = match (pair.collider1 == ground, c1, c2) {
                     (true, _, Some(c)) => *c.position() * p.local_p2,
                     (false, Some(c), _) => *c.position() * p.local_p1,
                     _ => continue,
                 };
+                r.moment_origin_y_nm += world_point.cross(f).y;
                 cop[0] += world_point.x * lambda;
                 cop[1] += world_point.z * lambda;
                 lambda_sum += lambda;

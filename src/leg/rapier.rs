@@ -16,8 +16,9 @@ use rapier3d_f64::glamx::{DQuat, DVec3, EulerRot};
 pub use rapier3d_f64::math::Pose;
 use rapier3d_f64::math::Vector;
 use rapier3d_f64::prelude::{
-    GenericJoint, GenericJointBuilder, ImpulseJointHandle, IntegrationParameters, JointAxesMask, MassProperties,
-    Multibody, MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SphericalJointBuilder,
+    GenericJoint, GenericJointBuilder, ImpulseJointHandle, IntegrationParameters, JointAxesMask, JointAxis,
+    MassProperties, Multibody, MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SphericalJointBuilder,
+    SpringCoefficients,
 };
 
 use super::error::LegError;
@@ -103,6 +104,20 @@ pub struct Leg {
     ground: Option<Belt>,
     /// What the ground did over the last step.
     contact: ContactReading,
+    /// Momenta of the shank and foot at the end of the last step, for the gait-lab knee moment.
+    lab: Option<SegmentMomenta>,
+    /// The gait-lab knee moment over the last step (N m, extensor positive).
+    lab_knee_moment_nm: f64,
+}
+
+/// Linear momentum (kg m/s) and angular momentum about the world origin (kg m^2/s) of the
+/// shank and foot, with their mass (kg) and the moment of their weight about the origin (N m).
+#[derive(Clone, Copy, Debug)]
+struct SegmentMomenta {
+    p: DVec3,
+    h: DVec3,
+    mass_kg: f64,
+    weight_moment: DVec3,
 }
 
 /// How the thigh is held.
@@ -119,6 +134,29 @@ pub enum Mount {
     },
     /// On a dynamic hip joint of a pelvis that moves in the sagittal plane.
     Carriage(CarriageConfig),
+}
+
+impl Mount {
+    /// The thigh's initial pose when it is not welded at the origin (None: welded).
+    fn root_pose(&self) -> Option<Pose> {
+        match *self {
+            Mount::Fixed => None,
+            Mount::Driven { hip_rad, .. } => Some(Pose::from_rotation(DQuat::from_axis_angle(-DVec3::Y, hip_rad))),
+            Mount::Carriage(c) => Some(Pose::from_parts(
+                DVec3::new(0.0, 0.0, c.pelvis_height_m),
+                DQuat::from_axis_angle(-DVec3::Y, c.hip_rad),
+            )),
+        }
+    }
+
+    /// The hip's initial angle and rate when the hip moves.
+    fn hip_init(&self) -> Option<(f64, f64)> {
+        match *self {
+            Mount::Fixed => None,
+            Mount::Driven { hip_rad, hip_vel_rad_s } => Some((hip_rad, hip_vel_rad_s)),
+            Mount::Carriage(c) => (!c.hip_locked).then_some((c.hip_rad, 0.0)),
+        }
+    }
 }
 
 /// The pelvis carriage: a body free in x and z (rotation locked) that carries the thigh on a
@@ -176,20 +214,24 @@ pub fn joint_origin_pose(j: &JointSpec) -> Pose {
 
 /// URDF joint -> Rapier generic joint. The Rapier joint frame's X axis is aligned with the URDF
 /// axis, so the Rapier coordinate equals the URDF coordinate (same sign).
-fn to_generic(j: &JointSpec) -> GenericJoint {
+fn to_generic(j: &JointSpec, with_limits: bool) -> GenericJoint {
     let origin = pose3(j.origin_xyz, j.origin_rpy);
     let axis = DVec3::from(j.axis);
     let align = Pose::from_rotation(DQuat::from_rotation_arc(DVec3::X, axis));
-    let mask = match j.kind {
-        JointKind::Revolute | JointKind::Continuous => JointAxesMask::LOCKED_REVOLUTE_AXES,
-        JointKind::Prismatic => JointAxesMask::LOCKED_PRISMATIC_AXES,
-        JointKind::Fixed => JointAxesMask::LOCKED_FIXED_AXES,
+    let (mask, free_axis) = match j.kind {
+        JointKind::Revolute | JointKind::Continuous => (JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX),
+        JointKind::Prismatic => (JointAxesMask::LOCKED_PRISMATIC_AXES, JointAxis::LinX),
+        JointKind::Fixed => (JointAxesMask::LOCKED_FIXED_AXES, JointAxis::AngX),
     };
-    GenericJointBuilder::new(mask).local_frame1(origin * align).local_frame2(align).contacts_enabled(false).build()
+    let mut b = GenericJointBuilder::new(mask).local_frame1(origin * align).local_frame2(align).contacts_enabled(false);
+    if let (true, Some((lo, hi)), false) = (with_limits, j.limits, j.kind == JointKind::Fixed) {
+        b = b.limits(free_axis, [lo, hi]);
+    }
+    b.build()
 }
 
 /// A Rapier world with the leg's gravity and solver settings.
-fn new_world(dt_s: f64, params: LegSolverParams) -> PhysicsWorld {
+fn new_world(dt_s: f64, params: LegSolverParams, ground: Option<&GroundConfig>) -> PhysicsWorld {
     let mut world = PhysicsWorld::new();
     world.gravity = Vector::new(0.0, 0.0, -GRAVITY_M_S2);
     world.integration_parameters = IntegrationParameters {
@@ -198,6 +240,11 @@ fn new_world(dt_s: f64, params: LegSolverParams) -> PhysicsWorld {
         num_internal_pgs_iterations: params.pgs_iterations,
         ..IntegrationParameters::default()
     };
+    if let Some(g) = ground {
+        let soft = SpringCoefficients::new(g.contact_frequency_hz, g.contact_damping_ratio);
+        world.integration_parameters.contact_softness = soft;
+        world.integration_parameters.static_contact_softness = soft;
+    }
     world
 }
 
@@ -290,7 +337,11 @@ fn insert_hip(world: &mut PhysicsWorld, thigh: RigidBodyHandle) -> Result<(), Le
 /// The pelvis carriage: a fixed anchor at the origin, the pelvis on a multibody joint free in
 /// x and z (x locked too when the tether is), and the thigh on a dynamic hinge about -y (or
 /// welded at the initial hip angle). Returns the pelvis body.
-fn insert_carriage(world: &mut PhysicsWorld, thigh: RigidBodyHandle, c: &CarriageConfig) -> Result<RigidBodyHandle, LegError> {
+fn insert_carriage(
+    world: &mut PhysicsWorld,
+    thigh: RigidBodyHandle,
+    c: &CarriageConfig,
+) -> Result<RigidBodyHandle, LegError> {
     let anchor = world.bodies.insert(RigidBodyBuilder::fixed().can_sleep(false).build());
     let inertia = c.pelvis_mass_kg * 0.01;
     let mp = MassProperties::new(DVec3::ZERO, c.pelvis_mass_kg, DVec3::splat(inertia));
@@ -328,19 +379,39 @@ fn insert_carriage(world: &mut PhysicsWorld, thigh: RigidBodyHandle, c: &Carriag
     Ok(pelvis)
 }
 
+/// The loop closure: a spherical impulse joint at the rod end. Returns it, its anchors in the
+/// two links' frames, and whether the rod is its first body.
+fn insert_closure(
+    world: &mut PhysicsWorld,
+    model: &LegSpec,
+    welds: &Welds,
+    link_body: &[RigidBodyHandle],
+) -> (ImpulseJointHandle, DVec3, DVec3, bool) {
+    let c = &model.closure;
+    let (anchor1, anchor2) = (DVec3::from(c.anchor1_m), DVec3::from(c.anchor2_m));
+    let sj = SphericalJointBuilder::new()
+        .local_anchor1(welds.offset[c.link1] * anchor1)
+        .local_anchor2(welds.offset[c.link2] * anchor2)
+        .contacts_enabled(false);
+    let closure = world.impulse_joints.insert(link_body[c.link1], link_body[c.link2], sj, true);
+    let rod_child = model.joints[model.rod].child;
+    (closure, anchor1, anchor2, welds.anchor[c.link1] == welds.anchor[rod_child])
+}
+
 /// The movable URDF joints as multibody joints between the welded bodies.
 fn insert_joints(
     world: &mut PhysicsWorld,
     model: &LegSpec,
     welds: &Welds,
     link_body: &[RigidBodyHandle],
+    with_limits: bool,
 ) -> Result<(), LegError> {
     for &ji in &model.topo_joints {
         let j = &model.joints[ji];
         if j.kind == JointKind::Fixed {
             continue;
         }
-        let mut gj = to_generic(j);
+        let mut gj = to_generic(j, with_limits);
         let f1 = welds.offset[j.parent] * gj.local_frame1;
         gj.set_local_frame1(f1);
         world
@@ -389,7 +460,13 @@ struct InitialState<'a> {
 /// Displace the multibody joints (which start at 0) to the loop solution, the hip angle and
 /// the pelvis height; set the URDF's damping (not Rapier's default 0.1 N m s/rad) and the
 /// initial velocities (the hip's, if driven).
-fn set_initial_state(world: &mut PhysicsWorld, model: &LegSpec, ids: &LinkIds, link_body: &[RigidBodyHandle], init: &InitialState) {
+fn set_initial_state(
+    world: &mut PhysicsWorld,
+    model: &LegSpec,
+    ids: &LinkIds,
+    link_body: &[RigidBodyHandle],
+    init: &InitialState,
+) {
     let joint_links: Vec<(usize, usize)> = model
         .topo_joints
         .iter()
@@ -496,9 +573,12 @@ impl Leg {
         ground: Option<&GroundConfig>,
     ) -> Result<Self, LegError> {
         if let Mount::Carriage(c) = &mount {
-            let ok = [c.pelvis_mass_kg, c.hip_rad, c.pelvis_height_m].iter().all(|v| v.is_finite()) && c.pelvis_mass_kg > 0.0;
+            let ok = [c.pelvis_mass_kg, c.hip_rad, c.pelvis_height_m].iter().all(|v| v.is_finite())
+                && c.pelvis_mass_kg > 0.0;
             if !ok {
-                return Err(LegError::InvalidArgument(format!("carriage {c:?}: finite values and a positive pelvis mass")));
+                return Err(LegError::InvalidArgument(format!(
+                    "carriage {c:?}: finite values and a positive pelvis mass"
+                )));
             }
         }
         Self::build(model, initial_knee_rad, mount, dt_s, params, ground)
@@ -519,16 +599,9 @@ impl Leg {
             return Err(LegError::InvalidArgument("initial knee angle is not finite".into()));
         }
         let q = model.joint_coords(&model.loop_solution_checked(initial_knee_rad)?);
-        let mut world = new_world(dt_s, params);
+        let mut world = new_world(dt_s, params, ground);
         let welds = Welds::new(model);
-        let root = match mount {
-            Mount::Fixed => None,
-            Mount::Driven { hip_rad, .. } => Some(Pose::from_rotation(DQuat::from_axis_angle(-DVec3::Y, hip_rad))),
-            Mount::Carriage(c) => Some(Pose::from_parts(
-                DVec3::new(0.0, 0.0, c.pelvis_height_m),
-                DQuat::from_axis_angle(-DVec3::Y, c.hip_rad),
-            )),
-        };
+        let root = mount.root_pose();
         let poses = initial_poses(model, &q, root);
         let (link_body, bodies) = insert_bodies(&mut world, model, &welds, &poses, root.is_some());
         let pelvis = match mount {
@@ -539,16 +612,10 @@ impl Leg {
             }
             Mount::Carriage(c) => Some(insert_carriage(&mut world, link_body[model.root], &c)?),
         };
-        insert_joints(&mut world, model, &welds, &link_body)?;
-        let c = &model.closure;
-        let (anchor1, anchor2) = (DVec3::from(c.anchor1_m), DVec3::from(c.anchor2_m));
-        let sj = SphericalJointBuilder::new()
-            .local_anchor1(welds.offset[c.link1] * anchor1)
-            .local_anchor2(welds.offset[c.link2] * anchor2)
-            .contacts_enabled(false);
-        let closure = world.impulse_joints.insert(link_body[c.link1], link_body[c.link2], sj, true);
-        let rod_child = model.joints[model.rod].child;
-        let rod_anchor_is_1 = welds.anchor[c.link1] == welds.anchor[rod_child];
+        // On the ground the body's weight can fold the leg: the URDF's joint limits hold it
+        // (hanging runs never reach them, and keep their unlimited joints).
+        insert_joints(&mut world, model, &welds, &link_body, ground.is_some())?;
+        let (closure, anchor1, anchor2, rod_anchor_is_1) = insert_closure(&mut world, model, &welds, &link_body);
         let belt = match ground {
             Some(g) => Some(Belt {
                 ground: insert_ground(&mut world, model, &link_body, &welds.offset, g)?,
@@ -557,11 +624,7 @@ impl Leg {
             None => None,
         };
         let ids = LinkIds::find(&world, model, &link_body, root.is_some())?;
-        let hip_init = match mount {
-            Mount::Fixed => None,
-            Mount::Driven { hip_rad, hip_vel_rad_s } => Some((hip_rad, hip_vel_rad_s)),
-            Mount::Carriage(c) => (!c.hip_locked).then_some((c.hip_rad, 0.0)),
-        };
+        let hip_init = mount.hip_init();
         let carriage = pelvis.zip(match mount {
             Mount::Carriage(c) => Some(c),
             _ => None,
@@ -584,12 +647,11 @@ impl Leg {
             accel: 0.0,
             coupling: HipCoupling::default(),
         });
-        let ankle_link = model
-            .ankle_joint()
-            .and_then(|j| world.multibody_joints.rigid_body_link(link_body[j.child]).map(|l| l.id));
+        let ankle_link =
+            model.ankle_joint().and_then(|j| world.multibody_joints.rigid_body_link(link_body[j.child]).map(|l| l.id));
         let carriage =
             carriage.map(|(pelvis, c)| CarriageState { pelvis, hip_locked_rad: c.hip_locked.then_some(c.hip_rad) });
-        Ok(Leg {
+        let mut leg = Leg {
             model: model.clone(),
             world,
             link_body,
@@ -612,7 +674,13 @@ impl Leg {
             ankle_link,
             ground: belt,
             contact: ContactReading::default(),
-        })
+            lab: None,
+            lab_knee_moment_nm: 0.0,
+        };
+        if leg.ground.is_some() {
+            leg.lab = Some(leg.segment_momenta());
+        }
+        Ok(leg)
     }
 
     /// Set the knee rate (rad/s) and the barrel and rod rates the loop implies (from the
@@ -633,6 +701,25 @@ impl Leg {
         for (ji, aid) in aids {
             v[aid] = (qp[ji] - qm[ji]) / (2.0 * h) * knee_rate_rad_s;
         }
+        mb.forward_kinematics(&self.world.bodies, false);
+        mb.update_rigid_bodies(&mut self.world.bodies, true);
+        Ok(())
+    }
+
+    /// Set the ankle angle (rad, dorsiflexion positive) and rate (rad/s) when the ankle moves,
+    /// e.g. to start with the foot flat; does nothing with a locked ankle.
+    pub fn set_ankle_state(&mut self, angle_rad: f64, rate_rad_s: f64) -> Result<(), LegError> {
+        let Some(link) = self.ankle_link else { return Ok(()) };
+        if !(angle_rad.is_finite() && rate_rad_s.is_finite()) {
+            return Err(LegError::InvalidArgument("ankle state is not finite".into()));
+        }
+        let now = self.ankle_angle_rad();
+        let mb = self.world.multibody_joints.get_multibody_mut(self.mb).unwrap();
+        let aid = mb.link(link).unwrap().assembly_id();
+        let mut disp = vec![0.0; mb.ndofs()];
+        disp[aid] = angle_rad - now;
+        mb.apply_displacements(&disp);
+        mb.generalized_velocity_mut()[aid] = rate_rad_s;
         mb.forward_kinematics(&self.world.bodies, false);
         mb.update_rigid_bodies(&mut self.world.bodies, true);
         Ok(())
@@ -834,6 +921,7 @@ impl Leg {
         }
         if let Some(belt) = &self.ground {
             self.contact = read_contacts(&self.world, belt.ground, self.dt);
+            self.update_lab_knee_moment();
         }
         if let Some(h) = &mut self.hip {
             h.accel = 0.0;
@@ -872,6 +960,63 @@ impl Leg {
     fn torque_pair(&mut self, on: usize, from: usize, torque: DVec3) {
         self.world.bodies[self.link_body[on]].add_torque(torque, true);
         self.world.bodies[self.link_body[from]].add_torque(-torque, true);
+    }
+
+    /// Momenta of the links carried by the shank's and the foot's bodies (the gait lab's
+    /// shank and foot segments; the cylinder's rod and barrel are other bodies).
+    fn segment_momenta(&self) -> SegmentMomenta {
+        let knee = &self.model.joints[self.model.knee];
+        let foot = self.model.ankle_joint().map_or(knee.child, |a| a.child);
+        let segs = [self.link_body[knee.child], self.link_body[foot]];
+        let gravity = DVec3::new(0.0, 0.0, -GRAVITY_M_S2);
+        let mut m = SegmentMomenta { p: DVec3::ZERO, h: DVec3::ZERO, mass_kg: 0.0, weight_moment: DVec3::ZERO };
+        for (li, l) in self.model.links.iter().enumerate() {
+            let hb = self.link_body[li];
+            if !segs.contains(&hb) {
+                continue;
+            }
+            let rb = &self.world.bodies[hb];
+            let pose = *rb.position() * self.link_offset[li];
+            let c = pose * DVec3::from(l.com_m);
+            let (w, cb) = (rb.angvel(), rb.center_of_mass());
+            let v = rb.linvel() + w.cross(c - cb);
+            let iw = pose.rotation * inertia_times(&l.inertia_kg_m2, pose.rotation.inverse() * w);
+            m.p += v * l.mass_kg;
+            m.h += c.cross(v * l.mass_kg) + iw;
+            m.mass_kg += l.mass_kg;
+            m.weight_moment += c.cross(gravity * l.mass_kg);
+        }
+        m
+    }
+
+    /// The net knee moment a gait lab would compute over the last step: the Newton-Euler
+    /// balance of the shank and foot from the ground reaction (force and moment) and the
+    /// change of their momenta, about the knee centre at the end of the step.
+    fn update_lab_knee_moment(&mut self) {
+        let now = self.segment_momenta();
+        if let Some(before) = self.lab {
+            let dt = self.dt;
+            let c = self.contact;
+            let grf = DVec3::new(c.horizontal_n, 0.0, c.vertical_n);
+            let gravity = DVec3::new(0.0, 0.0, -GRAVITY_M_S2);
+            // Force the thigh side applies at the knee: R = dP/dt - m g - GRF.
+            let r = (now.p - before.p) / dt - gravity * now.mass_kg - grf;
+            let knee = &self.model.joints[self.model.knee];
+            let kc = self.world_point(knee.parent, joint_origin_pose(knee).translation);
+            // Moment about the origin: M_k + K x R + weight + ground = dH/dt.
+            let mk =
+                (now.h - before.h) / dt - kc.cross(r) - now.weight_moment - DVec3::new(0.0, c.moment_origin_y_nm, 0.0);
+            // Flexion is a rotation about +y: an extensor moment is -y.
+            self.lab_knee_moment_nm = -mk.y;
+        }
+        self.lab = Some(now);
+    }
+
+    /// The net internal knee moment over the last step as a gait lab computes it from the
+    /// ground reaction and the shank and foot motion (N m, extensor positive as in the WBDS
+    /// data); 0 without ground or before the second step.
+    pub fn lab_knee_moment_nm(&self) -> f64 {
+        self.lab_knee_moment_nm
     }
 
     /// What the ground did over the last step (zero without ground).
@@ -976,9 +1121,17 @@ impl Leg {
             .sum()
     }
 
-    /// Kinetic + gravitational potential energy of all links, J.
+    /// Kinetic + gravitational potential energy of all links and the pelvis (carriage), J.
     pub fn total_energy_j(&self) -> f64 {
-        self.kinetic_energy_j() + self.potential_energy_j()
+        self.kinetic_energy_j() + self.potential_energy_j() + self.pelvis_energy_j()
+    }
+
+    /// Kinetic + gravitational potential energy of the pelvis on its carriage (J; 0 without).
+    pub fn pelvis_energy_j(&self) -> f64 {
+        self.carriage.map_or(0.0, |c| {
+            let rb = &self.world.bodies[c.pelvis];
+            0.5 * rb.mass() * rb.linvel().length_squared() + rb.mass() * GRAVITY_M_S2 * rb.translation().z
+        })
     }
 
     /// Handle of the loop-closure impulse joint (spherical joint at the rod end).

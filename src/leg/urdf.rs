@@ -493,7 +493,9 @@ fn ankle(joints: &mut [JointSpec], o: &LegOptions) -> Result<Option<usize>, LegE
             Ok(None)
         }
         (None, false) => Ok(None),
-        (None, true) => Err(LegError::UnknownJoint { element: "leg.ankle = \"free\"".into(), joint: o.ankle_joint.clone() }),
+        (None, true) => {
+            Err(LegError::UnknownJoint { element: "leg.ankle = \"free\"".into(), joint: o.ankle_joint.clone() })
+        }
         (Some(a), true) => {
             expect_kind(&joints[a], "ankle (leg.ankle = \"free\")", JointKind::is_hinge, "revolute or continuous")?;
             Ok(Some(a))
@@ -510,14 +512,17 @@ fn collisions(robot: &urdf_rs::Robot) -> Result<Vec<CollisionSpec>, LegError> {
             let size = |what: &str, v: f64| -> Result<f64, LegError> {
                 let v = sane(&el, what, v, MAX_LENGTH_M)?;
                 if v <= 0.0 {
-                    return Err(LegError::Invalid { element: el.clone(), message: format!("{what} must be > 0, got {v}") });
+                    return Err(LegError::Invalid {
+                        element: el.clone(),
+                        message: format!("{what} must be > 0, got {v}"),
+                    });
                 }
                 Ok(v)
             };
             let shape = match &c.geometry {
-                urdf_rs::Geometry::Box { size: s } => {
-                    CollisionShape::Box { size: [size("box x", s.0[0])?, size("box y", s.0[1])?, size("box z", s.0[2])?] }
-                }
+                urdf_rs::Geometry::Box { size: s } => CollisionShape::Box {
+                    size: [size("box x", s.0[0])?, size("box y", s.0[1])?, size("box z", s.0[2])?],
+                },
                 urdf_rs::Geometry::Cylinder { radius, length } => {
                     CollisionShape::Cylinder { radius: size("radius", *radius)?, length: size("length", *length)? }
                 }

@@ -121,61 +121,125 @@ fn check_coverage(pct: &[f64]) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// One gait cycle read from a CSV: knee (and optionally hip) angle against % of the cycle.
+/// One column of a gait cycle as read, against the cycle percentage, interpolated linearly and
+/// periodically (period 100 %): kinetics are used as forces, which need no derivatives, and a
+/// Fourier fit would ring at heel strike and toe-off.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CycleTable {
+    pct: Vec<f64>,
+    values: Vec<f64>,
+}
+
+impl CycleTable {
+    /// Value at `pct` (% of the cycle, any real: wrapped into the cycle).
+    pub fn at(&self, pct: f64) -> f64 {
+        let (first, n) = (self.pct[0], self.pct.len());
+        let p = first + (pct - first).rem_euclid(100.0);
+        let i = self.pct.partition_point(|&x| x <= p);
+        let (lo, hi) = if i == 0 || i == n {
+            // Between the last row and the first row of the next cycle.
+            ((self.pct[n - 1], self.values[n - 1]), (first + 100.0, self.values[0]))
+        } else {
+            ((self.pct[i - 1], self.values[i - 1]), (self.pct[i], self.values[i]))
+        };
+        let p = if p < lo.0 { p + 100.0 } else { p };
+        let span = hi.0 - lo.0;
+        if span <= 0.0 {
+            return lo.1;
+        }
+        lo.1 + (hi.1 - lo.1) * (p - lo.0) / span
+    }
+}
+
+/// Optional columns of a gait CSV, with the check each value must pass: angles in degrees
+/// (|v| <= 360, fitted), moments in N m/kg (|v| <= 20) and ground reaction in N/kg
+/// (-5..=50), tabulated.
+pub const OPTIONAL_GAIT_COLUMNS: [(&str, f64, f64); 6] = [
+    ("hip_flexion_deg", -360.0, 360.0),
+    ("ankle_dorsiflexion_deg", -360.0, 360.0),
+    ("hip_moment_nm_per_kg", -20.0, 20.0),
+    ("knee_moment_nm_per_kg", -20.0, 20.0),
+    ("ankle_moment_nm_per_kg", -20.0, 20.0),
+    ("grf_vertical_n_per_kg", -5.0, 50.0),
+];
+
+/// One gait cycle read from a CSV: knee (and optionally hip and ankle) angle against % of the
+/// cycle, and the kinetics columns when the file has them.
 #[derive(Debug, Clone)]
 pub struct GaitCycle {
     /// Knee flexion (rad, flexion positive) against cycle percentage.
     pub knee: FourierSeries,
     /// Hip flexion (rad, flexion positive) against cycle percentage, if the file has it.
     pub hip: Option<FourierSeries>,
+    /// Ankle dorsiflexion (rad, dorsiflexion positive), if the file has it.
+    pub ankle: Option<FourierSeries>,
+    /// Tabulated kinetics by column name (`hip_moment_nm_per_kg`, `knee_moment_nm_per_kg`,
+    /// `ankle_moment_nm_per_kg`: net internal moments, hip flexor, knee extensor, ankle
+    /// plantarflexor positive; `grf_vertical_n_per_kg`: up positive), those the file has.
+    pub kinetics: Vec<(&'static str, CycleTable)>,
     /// Number of data rows read.
     pub rows: usize,
+}
+
+/// The rows of a gait CSV: percentages, knee angles (rad) and the optional columns present
+/// (angles in rad, the rest as given).
+struct GaitRows {
+    pct: Vec<f64>,
+    knee: Vec<f64>,
+    optional: Vec<(&'static str, Vec<f64>)>,
+}
+
+fn read_gait_rows(name: &str, text: &str) -> Result<GaitRows> {
+    let bad = |key: &str, msg: String| Error::input(name, key, msg);
+    let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(text.as_bytes());
+    let headers = rdr.headers().map_err(|e| bad("header", format!("malformed CSV: {e}")))?.clone();
+    let col = |n: &str| headers.iter().position(|h| h == n);
+    let ipct = col("gait_cycle_pct").ok_or_else(|| bad("gait_cycle_pct", "missing column".into()))?;
+    let iknee = col("knee_flexion_deg").ok_or_else(|| bad("knee_flexion_deg", "missing column".into()))?;
+    let present: Vec<(usize, (&'static str, f64, f64))> =
+        OPTIONAL_GAIT_COLUMNS.iter().filter_map(|c| col(c.0).map(|i| (i, *c))).collect();
+    let mut rows = GaitRows {
+        pct: Vec::new(),
+        knee: Vec::new(),
+        optional: present.iter().map(|(_, c)| (c.0, Vec::new())).collect(),
+    };
+    for (r, rec) in rdr.records().enumerate() {
+        let row = r + 2; // 1-based line number, after the header
+        if row > MAX_GAIT_ROWS + 1 {
+            return Err(bad("rows", format!("more than {MAX_GAIT_ROWS} rows (the cap)")));
+        }
+        let rec = rec.map_err(|e| bad(&format!("row {row}"), format!("malformed CSV: {e}")))?;
+        let get = |i: usize, cname: &str, lo: f64, hi: f64| -> Result<f64> {
+            let s = rec.get(i).ok_or_else(|| bad(&format!("row {row}, {cname}"), "missing value".into()))?;
+            let v: f64 = s.parse().map_err(|_| bad(&format!("row {row}, {cname}"), format!("not a number: {s:?}")))?;
+            if !v.is_finite() {
+                return Err(bad(&format!("row {row}, {cname}"), format!("not finite: {s}")));
+            }
+            if !(lo..=hi).contains(&v) {
+                let what = if cname.ends_with("_deg") { "a joint angle in degrees" } else { "plausible" };
+                return Err(bad(&format!("row {row}, {cname}"), format!("{v} is not {what} (allowed {lo}..={hi})")));
+            }
+            Ok(if cname.ends_with("_deg") { v.to_radians() } else { v })
+        };
+        rows.pct.push(get(ipct, "gait_cycle_pct", f64::MIN, f64::MAX)?);
+        rows.knee.push(get(iknee, "knee_flexion_deg", -360.0, 360.0)?);
+        for ((i, c), (_, v)) in present.iter().zip(rows.optional.iter_mut()) {
+            v.push(get(*i, c.0, c.1, c.2)?);
+        }
+    }
+    Ok(rows)
 }
 
 impl GaitCycle {
     /// Parse a gait CSV and fit each angle with a `harmonics`-term periodic Fourier series
     /// (least squares). Needs columns `gait_cycle_pct` and `knee_flexion_deg`
-    /// (`hip_flexion_deg` optional); at least `2*harmonics + 2` and 8 rows; the cycle
+    /// ([`OPTIONAL_GAIT_COLUMNS`] optional); at least `2*harmonics + 2` and 8 rows; the cycle
     /// percentage strictly increasing and spanning at most 100 %. A last row that closes the
     /// cycle (first percentage + 100, as in the shared WBDS files) is the same instant as the
     /// first row: the least-squares fit weighs both, so the cycle repeats without a jump.
     pub fn parse(name: &str, text: &str, harmonics: usize) -> Result<Self> {
         let bad = |key: &str, msg: String| Error::input(name, key, msg);
-        let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(text.as_bytes());
-        let headers = rdr.headers().map_err(|e| bad("header", format!("malformed CSV: {e}")))?.clone();
-        let col = |n: &str| headers.iter().position(|h| h == n);
-        let ipct = col("gait_cycle_pct").ok_or_else(|| bad("gait_cycle_pct", "missing column".into()))?;
-        let iknee = col("knee_flexion_deg").ok_or_else(|| bad("knee_flexion_deg", "missing column".into()))?;
-        let ihip = col("hip_flexion_deg");
-        let (mut pct, mut knee, mut hip) = (Vec::new(), Vec::new(), Vec::new());
-        for (r, rec) in rdr.records().enumerate() {
-            let row = r + 2; // 1-based line number, after the header
-            let rec = rec.map_err(|e| bad(&format!("row {row}"), format!("malformed CSV: {e}")))?;
-            let get = |i: usize, cname: &str| -> Result<f64> {
-                let s = rec.get(i).ok_or_else(|| bad(&format!("row {row}, {cname}"), "missing value".into()))?;
-                let v: f64 =
-                    s.parse().map_err(|_| bad(&format!("row {row}, {cname}"), format!("not a number: {s:?}")))?;
-                if !v.is_finite() {
-                    return Err(bad(&format!("row {row}, {cname}"), format!("not finite: {s}")));
-                }
-                Ok(v)
-            };
-            if row > MAX_GAIT_ROWS + 1 {
-                return Err(bad("rows", format!("more than {MAX_GAIT_ROWS} rows (the cap)")));
-            }
-            let angle = |i: usize, cname: &str| -> Result<f64> {
-                let v = get(i, cname)?;
-                if v.abs() > 360.0 {
-                    return Err(bad(&format!("row {row}, {cname}"), format!("{v} is not a joint angle in degrees")));
-                }
-                Ok(v.to_radians())
-            };
-            pct.push(get(ipct, "gait_cycle_pct")?);
-            knee.push(angle(iknee, "knee_flexion_deg")?);
-            if let Some(i) = ihip {
-                hip.push(angle(i, "hip_flexion_deg")?);
-            }
-        }
+        let GaitRows { pct, knee, optional } = read_gait_rows(name, text)?;
         let need = (2 * harmonics + 2).max(8);
         if pct.len() < need {
             return Err(bad(
@@ -192,8 +256,19 @@ impl GaitCycle {
         check_coverage(&pct).map_err(|m| bad("gait_cycle_pct", m))?;
         let rows = pct.len();
         let fit = |v: &[f64]| FourierSeries::fit(&pct, v, 100.0, harmonics);
-        let hip = if ihip.is_some() { Some(fit(&hip)) } else { None };
-        Ok(GaitCycle { knee: fit(&knee), hip, rows })
+        let angle = |n: &str| optional.iter().find(|c| c.0 == n).map(|c| fit(&c.1));
+        let (hip, ankle) = (angle("hip_flexion_deg"), angle("ankle_dorsiflexion_deg"));
+        let kinetics = optional
+            .iter()
+            .filter(|c| !c.0.ends_with("_deg"))
+            .map(|c| (c.0, CycleTable { pct: pct.clone(), values: c.1.clone() }))
+            .collect();
+        Ok(GaitCycle { knee: fit(&knee), hip, ankle, kinetics, rows })
+    }
+
+    /// A kinetics column by name, if the file has it.
+    pub fn kinetic(&self, name: &str) -> Option<&CycleTable> {
+        self.kinetics.iter().find(|c| c.0 == name).map(|c| &c.1)
     }
 
     /// Load a built-in trial by name; also returns its default stride time (s).

@@ -10,6 +10,7 @@ mod gait;
 mod hardening;
 mod hostile;
 mod leg_coupled;
+mod leg_ground;
 mod leg_hip;
 mod leg_passive;
 mod leg_statics;
