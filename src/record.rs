@@ -35,6 +35,14 @@ pub struct ContactRow {
     /// Net knee moment from the ground reaction and the shank and foot dynamics (N m, extensor
     /// positive, gait-lab convention).
     pub knee_moment_nm: f64,
+    /// Ankle dorsiflexion (deg).
+    pub ankle_angle_deg: f64,
+    /// Hip height above the ground (m; the hip's z when not on the carriage).
+    pub pelvis_height_m: f64,
+    /// The virtual other leg's force on the pelvis (N, up).
+    pub support_force_n: f64,
+    /// The wearer's knee torque (N m, flexion positive).
+    pub wearer_knee_torque_nm: f64,
 }
 
 /// One recorded instant. Units in the field names; see the README's output section.
@@ -129,8 +137,16 @@ pub const LEG_COLUMNS: [&str; 6] = [
 ];
 
 /// Names of the contact columns.
-pub const CONTACT_COLUMNS: [&str; 4] =
-    ["ground_reaction_vertical_n", "ground_reaction_horizontal_n", "contact_penetration_m", "knee_moment_nm"];
+pub const CONTACT_COLUMNS: [&str; 8] = [
+    "ground_reaction_vertical_n",
+    "ground_reaction_horizontal_n",
+    "contact_penetration_m",
+    "knee_moment_nm",
+    "ankle_angle_deg",
+    "pelvis_height_m",
+    "support_force_n",
+    "wearer_knee_torque_nm",
+];
 
 impl Layout {
     /// Column names in output order.
@@ -201,6 +217,10 @@ impl Row {
                 c.ground_reaction_horizontal_n,
                 c.contact_penetration_m,
                 c.knee_moment_nm,
+                c.ankle_angle_deg,
+                c.pelvis_height_m,
+                c.support_force_n,
+                c.wearer_knee_torque_nm,
             ]);
         }
     }

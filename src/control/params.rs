@@ -85,6 +85,22 @@ pub struct ControllerParams {
     pub observer: ObserverParams,
     /// The model the controller assumes.
     pub nominal: NominalParams,
+    /// The leg the controller's gait cascade assumes (its inverse dynamics and the outer
+    /// loop's moment arm).
+    pub nominal_leg: NominalLeg,
+}
+
+/// `[controller.nominal_leg]`: the leg model the controller believes in. Defaults: the
+/// plant's (`leg.urdf`, `leg.mass_scale`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NominalLeg {
+    /// URDF of the controller's leg (same lookup as `leg.urdf`). Default: the plant's.
+    pub urdf: Option<String>,
+    /// Mass scale of the controller's leg. Default: the plant's `leg.mass_scale`. 0.2..=5.
+    pub mass_scale: Option<f64>,
+    /// SHA-256 of the controller's URDF; filled in by every run that names one.
+    pub urdf_sha256: Option<String>,
 }
 
 impl Default for ControllerParams {
@@ -102,6 +118,7 @@ impl Default for ControllerParams {
             rbf: RbfParams::default(),
             observer: ObserverParams::default(),
             nominal: NominalParams::default(),
+            nominal_leg: NominalLeg::default(),
         }
     }
 }

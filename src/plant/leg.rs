@@ -3,10 +3,10 @@
 use super::{PistonMotion, PistonPredictor, Plant, PlantInputs};
 use crate::error::{Error, Result};
 use crate::leg::{
-    generalized_inertia_at, knee_forward_acceleration, moment_arm_at, moment_arm_slope_at, Leg, LegError,
-    LegSolverParams, LegSpec,
+    generalized_inertia_at, knee_forward_acceleration, moment_arm_at, moment_arm_slope_at, CarriageConfig, Leg,
+    LegError, LegForces, LegSolverParams, LegSpec, Mount,
 };
-use crate::record::LegRow;
+use crate::record::{ContactRow, LegRow};
 use rapier3d_f64::glamx::DVec3;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -36,6 +36,84 @@ pub struct LegParams {
     /// SHA-256 of the URDF's content; filled in by every run (see `summary.json`). When set,
     /// a run warns if the file has changed since.
     pub urdf_sha256: Option<String>,
+    /// Name of the ankle joint in the URDF (it moves when `ground.enabled`; otherwise it is
+    /// locked at 0). Default `ankle`.
+    pub ankle_joint: String,
+    /// Every link's mass and inertia scaled by this factor (the plant's leg; the controller's
+    /// cascade uses `controller.nominal_leg`). Default 1. 0.2..=5.
+    pub mass_scale: f64,
+}
+
+/// `[ground]`: a flat ground, or a treadmill belt, under the foot (leg plant).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GroundParams {
+    /// Ground contact on (the URDF's `<collision>` shapes become Rapier colliders and the
+    /// ankle moves). Default false.
+    pub enabled: bool,
+    /// Height of the ground (m, world z; the hip starts at z = 0 when fixed or driven, and
+    /// `ground.height_m` + the data's hip height on the carriage). Default: where the sole
+    /// touches at the start (carriage) or the lowest sole point over the gait cycle (driven).
+    /// Must be below the hip.
+    pub height_m: Option<f64>,
+    /// Coulomb friction coefficient, sole on ground (-). Default 0.8. 0..=5.
+    pub friction: f64,
+    /// Belt speed (m/s, the surface moving to -x under a person facing +x). Default: the
+    /// speed the data's stance implies (gait on the carriage), else 0. -10..=10.
+    pub belt_speed_m_s: Option<f64>,
+    /// Natural frequency of Rapier's soft contact constraint (Hz): stiffer contacts penetrate
+    /// less (about 0.2 mm under a 75 kg body at 200 Hz; Rapier's regularisation is implicit,
+    /// so any value is stable). Default 200. 1..=1000.
+    pub contact_frequency_hz: f64,
+    /// Damping ratio of the contact constraint (-). Default 1. 0..=20.
+    pub contact_damping_ratio: f64,
+}
+
+impl Default for GroundParams {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            height_m: None,
+            friction: 0.8,
+            belt_speed_m_s: None,
+            contact_frequency_hz: 200.0,
+            contact_damping_ratio: 1.0,
+        }
+    }
+}
+
+/// What the body does on the carriage: the data it follows.
+#[derive(Debug, Clone)]
+pub enum BodyTargets {
+    /// Loaded walking along a gait cycle.
+    Walking(Arc<crate::reference::WalkingData>),
+    /// A constant pose (standing).
+    Pose(crate::reference::WalkingSample),
+}
+
+impl BodyTargets {
+    /// The targets at `t_s`.
+    pub fn at(&self, t_s: f64) -> crate::reference::WalkingSample {
+        match self {
+            BodyTargets::Walking(w) => w.at(t_s),
+            BodyTargets::Pose(p) => *p,
+        }
+    }
+}
+
+/// The body on the pelvis carriage, resolved.
+#[derive(Debug, Clone)]
+pub struct BodySetup {
+    /// `[hip]` settings.
+    pub hip: crate::human::HipParams,
+    /// `[wearer]` settings.
+    pub wearer: crate::human::WearerParams,
+    /// What the body follows.
+    pub targets: BodyTargets,
+    /// Mass the pelvis carries (kg).
+    pub pelvis_mass_kg: f64,
+    /// Initial ankle dorsiflexion (rad).
+    pub ankle_rad: f64,
 }
 
 impl Default for LegParams {
@@ -46,6 +124,8 @@ impl Default for LegParams {
             initial_knee_deg: None,
             solver_iterations: LegSolverParams::default().solver_iterations,
             urdf_sha256: None,
+            ankle_joint: "ankle".into(),
+            mass_scale: 1.0,
         }
     }
 }
@@ -134,6 +214,45 @@ pub struct LegSetup {
     pub cuff: (String, [f64; 3]),
     /// The run starts on its gait trajectory (knee angle and rate from the reference).
     pub start_on_trajectory: bool,
+    /// The ground, when contact is on.
+    pub ground: Option<crate::leg::GroundConfig>,
+    /// The body on the pelvis carriage (`hip.mode = "carriage"`).
+    pub body: Option<Arc<BodySetup>>,
+}
+
+/// The Rapier leg of a setup: welded, on a driven hip, or on the carriage, with the ground
+/// when contact is on.
+fn build_leg(setup: &LegSetup, dt_s: f64, params: LegSolverParams) -> std::result::Result<Leg, LegError> {
+    let (model, q0) = (&setup.model, setup.start.knee_rad);
+    let ground = setup.ground.as_ref();
+    let mount = match (&setup.body, &setup.start.hip) {
+        (Some(b), _) => {
+            let d = b.targets.at(0.0);
+            Mount::Carriage(CarriageConfig {
+                pelvis_mass_kg: b.pelvis_mass_kg,
+                hip_rad: d.hip.value,
+                pelvis_height_m: ground.map_or(0.0, |g| g.height_m) + d.pelvis_height_m + b.hip.initial_clearance_m,
+                tether_locked: b.hip.tether_locked,
+                hip_locked: b.hip.locked,
+            })
+        }
+        (None, None) => Mount::Fixed,
+        // The kinematic hip joint's velocity is its average over a step; the velocity it
+        // had over the step before t = 0 is rate - accel*dt/2, so the first step sees the
+        // hip acceleration the trajectory has.
+        (None, Some(h)) => Mount::Driven { hip_rad: h.value, hip_vel_rad_s: h.rate - 0.5 * h.accel * dt_s },
+    };
+    let mut leg = match (mount, ground) {
+        (Mount::Fixed, None) => Leg::with_params(model, q0, dt_s, params)?,
+        (Mount::Driven { hip_rad, hip_vel_rad_s }, None) => {
+            Leg::with_hip(model, q0, hip_rad, hip_vel_rad_s, dt_s, params)?
+        }
+        (m, g) => Leg::with_config(model, q0, m, dt_s, params, g)?,
+    };
+    if let Some(b) = &setup.body {
+        leg.set_ankle_state(b.ankle_rad, 0.0)?;
+    }
+    Ok(leg)
 }
 
 /// The leg plant: Rapier multibody leg with the hydraulic cylinder in a closed loop.
@@ -165,6 +284,10 @@ pub struct LegPlant {
     max_gap_m: f64,
     /// dt/(2n) for Rapier's n TGS substeps (see [`PistonPredictor::velocity_lead_s`]).
     velocity_lead_s: f64,
+    /// The body on the carriage, and what it applied over the last step.
+    body: Option<(Arc<BodySetup>, crate::human::BodyForces)>,
+    /// Ground height (m), with contact.
+    ground_height_m: Option<f64>,
 }
 
 impl LegPlant {
@@ -175,14 +298,7 @@ impl LegPlant {
         let model = setup.model.clone();
         let (q0, qd0, hip) = (setup.start.knee_rad, setup.start.knee_rate_rad_s, setup.start.hip);
         let bad = |e: crate::leg::LegError| Error::input(source_name, "leg.initial_knee_deg", e.to_string());
-        let mut leg = match &hip {
-            None => Leg::with_params(&model, q0, dt_s, params),
-            // The kinematic hip joint's velocity is its average over a step; the velocity it
-            // had over the step before t = 0 is rate - accel*dt/2, so the first step sees the
-            // hip acceleration the trajectory has.
-            Some(h) => Leg::with_hip(&model, q0, h.value, h.rate - 0.5 * h.accel * dt_s, dt_s, params),
-        }
-        .map_err(bad)?;
+        let mut leg = build_leg(setup, dt_s, params).map_err(bad)?;
         if qd0 != 0.0 {
             leg.set_knee_velocity(qd0).map_err(bad)?;
         }
@@ -213,6 +329,8 @@ impl LegPlant {
             knee_axis,
             max_gap_m: 0.0,
             velocity_lead_s: dt_s / (2.0 * setup.solver_iterations as f64),
+            body: setup.body.clone().map(|b| (b, crate::human::BodyForces::default())),
+            ground_height_m: setup.ground.map(|g| g.height_m),
         })
     }
 
@@ -229,6 +347,23 @@ impl LegPlant {
     /// Largest loop-closure gap seen so far (m).
     pub fn max_loop_gap_m(&self) -> f64 {
         self.max_gap_m
+    }
+
+    /// The body's forces for the step from `t_s` (zero without the carriage); kept for the
+    /// record.
+    fn body_forces(&mut self, t_s: f64) -> crate::human::BodyForces {
+        let Some((b, last)) = &mut self.body else { return crate::human::BodyForces::default() };
+        let leg = &self.leg;
+        let (p, v) = leg.pelvis_state();
+        let state = crate::human::BodyState {
+            hip: (leg.hip_angle_rad(), leg.hip_velocity_rad_s()),
+            knee: (leg.knee_angle_rad(), leg.knee_velocity_rad_s()),
+            ankle: (leg.ankle_angle_rad(), leg.ankle_velocity_rad_s()),
+            pelvis: [p[0], p[1] - self.ground_height_m.unwrap_or(0.0)],
+            pelvis_rate: v,
+        };
+        *last = crate::human::body_forces(&b.hip, &b.wearer, &b.targets.at(t_s), &state);
+        *last
     }
 
     /// World force vector of magnitude `flexion_force_n` at the cuff, perpendicular to the
@@ -293,7 +428,15 @@ impl Plant for LegPlant {
                 value: h,
             })?;
         }
-        self.leg.step(inputs.cylinder_force_n, cuff);
+        let body = self.body_forces(t_s);
+        self.leg.step_with(&LegForces {
+            actuator_force_n: inputs.cylinder_force_n,
+            shank_force: cuff,
+            hip_torque_nm: body.hip_torque_nm,
+            knee_torque_nm: body.knee_torque_nm,
+            ankle_torque_nm: body.ankle_torque_nm,
+            pelvis_force_n: body.pelvis_force_n,
+        });
         let dl = self.leg.cylinder_length_change_m();
         let q1 = self.leg.knee_angle_rad();
         let v = moment_arm_at(&self.model, q1) * self.leg.knee_velocity_rad_s();
@@ -308,6 +451,23 @@ impl Plant for LegPlant {
             return Err(Error::Diverged { time_s: t_s + dt_s, state: "knee_angle_rad".into(), value: q1 });
         }
         Ok(dl)
+    }
+
+    fn contact_row(&self) -> Option<ContactRow> {
+        self.ground_height_m?;
+        let c = self.leg.contact();
+        let body = self.body.as_ref().map(|b| b.1).unwrap_or_default();
+        let (p, _) = self.leg.pelvis_state();
+        Some(ContactRow {
+            ground_reaction_vertical_n: c.vertical_n,
+            ground_reaction_horizontal_n: c.horizontal_n,
+            contact_penetration_m: c.penetration_m,
+            knee_moment_nm: self.leg.lab_knee_moment_nm(),
+            ankle_angle_deg: self.leg.ankle_angle_rad().to_degrees(),
+            pelvis_height_m: p[1] - self.ground_height_m.unwrap_or(0.0),
+            support_force_n: body.pelvis_force_n[1],
+            wearer_knee_torque_nm: body.knee_torque_nm,
+        })
     }
 
     fn leg_row(&self) -> Option<LegRow> {

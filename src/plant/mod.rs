@@ -9,7 +9,7 @@ pub use bench::*;
 pub use leg::*;
 
 use crate::error::Result;
-use crate::record::LegRow;
+use crate::record::{ContactRow, LegRow};
 use serde::{Deserialize, Serialize};
 
 /// Which plant a scenario runs.
@@ -103,6 +103,11 @@ pub trait Plant: Send {
     fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64>;
     /// The leg columns of the record now (None for plants without a leg).
     fn leg_row(&self) -> Option<LegRow> {
+        None
+    }
+    /// The contact columns of the record now: what the ground and the body did over the last
+    /// step (None without ground contact).
+    fn contact_row(&self) -> Option<ContactRow> {
         None
     }
 }

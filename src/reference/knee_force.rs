@@ -19,7 +19,7 @@
 //! derivatives are taken as zero (it is updated once per step or sample). The PD itself is a
 //! controller (`control::KneePd`).
 
-use super::{FourierSeries, GaitReference, RefSample};
+use super::{FourierSeries, GaitReference, RefSample, WalkingData};
 use crate::error::{Error, Result};
 use crate::hydraulics::FrictionParams;
 use crate::leg::{knee_inverse_dynamics, moment_arm_at, moment_arm_curvature_at, moment_arm_slope_at, LegSpec};
@@ -39,40 +39,73 @@ pub struct KneeForceReference {
     model: Arc<LegSpec>,
     friction: FrictionParams,
     drive_hip: bool,
+    stance: Option<Arc<WalkingData>>,
 }
 
 impl KneeForceReference {
     /// The Fourier fit of the inverse-dynamics force `tau_id / (dL/dq)` over a stride (the
     /// expensive part, shared by every run with the same leg, gait and hip motion).
-    /// `drive_hip`: include the hip trajectory in the inverse dynamics (the thigh follows it).
-    pub fn inverse_dynamics_fit(gait: &GaitReference, model: &LegSpec, drive_hip: bool) -> Result<FourierSeries> {
+    /// `with_hip`: include the hip trajectory in the inverse dynamics (the thigh follows it).
+    /// `assist`: on the carriage, the walking data and the assistance fraction: the fitted
+    /// force is then `(1 - w) F_id + w F_assist` with the stance weight `w` and
+    /// `F_assist = -fraction * M_knee,data / (dL/dq)(q_d)` (the data's extensor moment as a
+    /// flexion-positive torque over the moment arm).
+    pub fn inverse_dynamics_fit(
+        gait: &GaitReference,
+        model: &LegSpec,
+        with_hip: bool,
+        assist: Option<(&WalkingData, f64)>,
+    ) -> Result<FourierSeries> {
         let stride = gait.stride_s;
         let mut t = Vec::with_capacity(FF_SAMPLES);
         let mut f = Vec::with_capacity(FF_SAMPLES);
         for i in 0..FF_SAMPLES {
             let ti = i as f64 * stride / FF_SAMPLES as f64;
             let k = gait.knee_at(ti);
-            let h = if drive_hip { gait.hip_at(ti) } else { RefSample::default() };
+            let h = if with_hip { gait.hip_at(ti) } else { RefSample::default() };
             let tau =
                 knee_inverse_dynamics(model, (h.value, h.rate, h.accel), (k.value, k.rate, k.accel)).map_err(|e| {
                     Error::input("reference", "reference", format!("inverse dynamics at t = {ti:.4} s: {e}"))
                 })?;
+            let arm = moment_arm_at(model, k.value);
+            let f_id = tau / arm;
             t.push(ti);
-            f.push(tau / moment_arm_at(model, k.value));
+            f.push(match assist {
+                None => f_id,
+                Some((w, fraction)) => {
+                    let pct = w.pct_at(ti);
+                    let weight = w.stance_weight_at_pct(pct);
+                    let f_assist = -fraction * w.knee_moment_at_pct(pct) / arm;
+                    (1.0 - weight) * f_id + weight * f_assist
+                }
+            });
         }
         Ok(FourierSeries::fit(&t, &f, stride, FF_HARMONICS))
     }
 
     /// The reference from a fit made by [`Self::inverse_dynamics_fit`] with the same gait,
-    /// model and hip motion, and the seal friction to add.
+    /// model and hip motion, and the seal friction to add. `drive_hip`: the plant's thigh
+    /// follows the hip trajectory kinematically. `stance`: on the carriage, the walking data
+    /// whose stance weight gates the outer loop (it acts in swing only).
     pub fn new(
         gait: GaitReference,
         model: Arc<LegSpec>,
         friction: FrictionParams,
         drive_hip: bool,
         id_fit: Arc<FourierSeries>,
+        stance: Option<Arc<WalkingData>>,
     ) -> Self {
-        Self { gait, id_fit, model, friction, drive_hip }
+        Self { gait, id_fit, model, friction, drive_hip, stance }
+    }
+
+    /// Whether the outer loop is gated by the stance (carriage).
+    pub fn stance_gated(&self) -> bool {
+        self.stance.is_some()
+    }
+
+    /// Weight of the outer loop at `t_s`: 1, or on the carriage 1 - the stance weight.
+    pub fn outer_loop_weight(&self, t_s: f64) -> f64 {
+        self.stance.as_ref().map_or(1.0, |w| 1.0 - w.stance_weight_at_pct(w.pct_at(t_s)))
     }
 
     /// The seal friction along the trajectory, `F_f(v_d(t))` (N), with its first two time

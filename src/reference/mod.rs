@@ -5,8 +5,10 @@
 
 mod gait;
 mod knee_force;
+mod walking;
 pub use gait::*;
 pub use knee_force::*;
+pub use walking::*;
 
 use serde::Serialize;
 use std::sync::Arc;
@@ -56,6 +58,11 @@ pub enum ForceReference {
     Sine(Sine),
     /// Knee (and hip) trajectory with the inverse-dynamics feedforward force.
     Gait(Arc<KneeForceReference>),
+    /// A constant knee angle (rad), held by the outer loop alone (no feedforward).
+    Pose {
+        /// Knee flexion to hold (rad).
+        knee_rad: f64,
+    },
 }
 
 impl ForceReference {
@@ -63,6 +70,7 @@ impl ForceReference {
     pub fn knee_at(&self, t_s: f64) -> Option<RefSample> {
         match self {
             ForceReference::Gait(k) => Some(k.gait.knee_at(t_s)),
+            ForceReference::Pose { knee_rad } => Some(RefSample { value: *knee_rad, ..Default::default() }),
             ForceReference::Sine(_) => None,
         }
     }
@@ -79,20 +87,22 @@ impl ForceReference {
     pub fn stride_s(&self) -> Option<f64> {
         match self {
             ForceReference::Gait(k) => Some(k.gait.stride_s),
-            ForceReference::Sine(_) => None,
+            ForceReference::Sine(_) | ForceReference::Pose { .. } => None,
         }
     }
 
-    /// The desired force at `t_s` with a held outer-loop force `pd_force_n` (N) added (gait
-    /// only; a sine has no outer loop).
+    /// The desired force at `t_s` with a held outer-loop force `pd_force_n` (N) added (gait,
+    /// weighted by [`KneeForceReference::outer_loop_weight`], and pose; a sine has no outer
+    /// loop).
     pub fn force_at(&self, t_s: f64, pd_force_n: f64) -> RefSample {
         match self {
             ForceReference::Sine(s) => s.at(t_s),
             ForceReference::Gait(k) => {
                 let mut r = k.feedforward_at(t_s);
-                r.value += pd_force_n;
+                r.value += if k.stance_gated() { pd_force_n * k.outer_loop_weight(t_s) } else { pd_force_n };
                 r
             }
+            ForceReference::Pose { .. } => RefSample { value: pd_force_n, ..Default::default() },
         }
     }
 }

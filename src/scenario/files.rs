@@ -3,7 +3,7 @@
 //! its parsed form and the tables built from it.
 
 use crate::error::{Error, Result};
-use crate::leg::LegSpec;
+use crate::leg::{LegOptions, LegSpec};
 use crate::plant::{MassTable, BUILTIN_URDFS};
 use crate::reference::{FourierSeries, GaitCycle, BUILTIN_TRIALS};
 use sha2::{Digest, Sha256};
@@ -80,9 +80,9 @@ pub struct LoadedLeg {
     pub mass: Arc<MassTable>,
 }
 
-/// Key of a cached inverse-dynamics fit: (leg sha, knee joint, gait sha, harmonics, stride
-/// bits, hip driven).
-pub type CascadeKey = (String, String, String, usize, u64, bool);
+/// Key of a cached inverse-dynamics fit: everything it depends on (leg text and options, gait
+/// text, harmonics, stride, hip motion, assistance), written out.
+pub type CascadeKey = String;
 
 /// Parsed inputs shared by all runs of a process or sweep. Every entry is built the first
 /// time it is asked for and reused after; errors are not cached.
@@ -90,6 +90,7 @@ pub type CascadeKey = (String, String, String, usize, u64, bool);
 pub struct Resources {
     texts: Mutex<HashMap<String, InputText>>,
     legs: Mutex<HashMap<(String, String), Arc<LoadedLeg>>>,
+    walking: Mutex<HashMap<String, Arc<crate::reference::WalkingData>>>,
     gaits: Mutex<HashMap<(String, usize), Arc<GaitCycle>>>,
     cascades: Mutex<HashMap<CascadeKey, Arc<FourierSeries>>>,
 }
@@ -141,18 +142,37 @@ impl Resources {
         Ok(t)
     }
 
-    /// The leg model of a URDF text (parsed and tabulated once per text and knee joint).
-    pub fn leg(&self, urdf: &InputText, knee_joint: &str) -> std::result::Result<Arc<LoadedLeg>, crate::leg::LegError> {
-        let key = (urdf.sha256.clone(), knee_joint.to_string());
+    /// The leg model of a URDF text (parsed and tabulated once per text and options).
+    pub fn leg(
+        &self,
+        urdf: &InputText,
+        options: &LegOptions,
+    ) -> std::result::Result<Arc<LoadedLeg>, crate::leg::LegError> {
+        let key = (urdf.sha256.clone(), format!("{options:?}"));
         let mut legs = lock(&self.legs);
         if let Some(l) = legs.get(&key) {
             return Ok(l.clone());
         }
-        let model = LegSpec::from_urdf_str(&urdf.text, knee_joint)?;
+        let model = LegSpec::from_urdf_with(&urdf.text, options)?;
         let mass = MassTable::new(&model)?;
         let l = Arc::new(LoadedLeg { model: Arc::new(model), mass: Arc::new(mass) });
         legs.insert(key, l.clone());
         Ok(l)
+    }
+
+    /// Walking data for a key (gait, leg, subject), built once with `build`.
+    pub fn walking(
+        &self,
+        key: String,
+        build: impl FnOnce() -> Result<crate::reference::WalkingData>,
+    ) -> Result<Arc<crate::reference::WalkingData>> {
+        let mut c = lock(&self.walking);
+        if let Some(w) = c.get(&key) {
+            return Ok(w.clone());
+        }
+        let w = Arc::new(build()?);
+        c.insert(key, w.clone());
+        Ok(w)
     }
 
     /// The parsed gait cycle of a CSV text (once per text and harmonics).

@@ -15,10 +15,10 @@ pub use resolve::*;
 use crate::control::ControllerParams;
 use crate::disturbance::Disturbances;
 use crate::error::{Error, Result};
-use crate::human::HumanParams;
+use crate::human::{HipParams, HumanParams, WearerParams};
 use crate::hydraulics::{ActuatorParams, FrictionParams, HydraulicParams};
 use crate::metrics::Criteria;
-use crate::plant::{BenchParams, LegParams, PlantKind};
+use crate::plant::{BenchParams, GroundParams, LegParams, PlantKind};
 use crate::sensors::SensorParams;
 use crate::sim::Integrator;
 use serde::{Deserialize, Serialize};
@@ -70,6 +70,8 @@ pub enum ReferenceKind {
     /// A knee (and hip) gait trajectory; the desired force comes from the leg's inverse
     /// dynamics plus an outer PD on the knee angle (leg plant only).
     Gait,
+    /// A constant knee and hip angle held by the outer PID alone (static tests; leg plant).
+    Pose,
 }
 
 /// `[reference]`: the desired load force (`sine`) or knee trajectory (`gait`).
@@ -102,8 +104,21 @@ pub struct ReferenceSection {
     pub cadence_steps_per_min: Option<f64>,
     /// Gait: harmonics of the periodic Fourier fit of the angles. Default 12. 1..=40.
     pub harmonics: usize,
-    /// Gait: drive the thigh along the trial's hip angle (kinematic hip joint). Default true.
-    pub drive_hip: bool,
+    /// Deprecated: `hip.mode = "driven"` (true) or `"fixed"` (false). Read for old scenarios
+    /// and summaries, with a warning.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub drive_hip: Option<bool>,
+    /// Pose: knee flexion to hold (deg). Default 20. Within the URDF's knee range.
+    pub knee_deg: f64,
+    /// Pose: hip flexion (deg). Default 10. -60..=120.
+    pub hip_deg: f64,
+    /// Gait and pose: outer-loop integral gain on the knee angle error (N m/(rad s)), with the
+    /// integral's torque clamped to +-300 N m. Default 0. >= 0.
+    pub knee_ki_nm_per_rad_s: f64,
+    /// Gait on the carriage: the exoskeleton's stance assistance, a fraction of the data's knee
+    /// moment over the moment arm; the cascade (inverse dynamics + PD) acts in swing, the two
+    /// blended with the stance weight (see README, "Loaded walking"). Default 0. 0..=1.
+    pub assist_fraction: f64,
     /// Gait: the smooth sign `tanh(v/eps)` of the seal friction the cascade compensates (m/s;
     /// the cascade's own model of the friction, with the plant's levels). Default 0.005. > 0.
     /// The plant's 1 mm/s makes F_d turn at every velocity reversal in ~0.1 ms, faster than any
@@ -129,7 +144,11 @@ impl Default for ReferenceSection {
             stride_s: None,
             cadence_steps_per_min: None,
             harmonics: 12,
-            drive_hip: true,
+            drive_hip: None,
+            knee_deg: 20.0,
+            hip_deg: 10.0,
+            knee_ki_nm_per_rad_s: 0.0,
+            assist_fraction: 0.0,
             friction_smoothing_velocity_m_s: 0.005,
             knee_kp_nm_per_rad: 400.0,
             knee_kd_nm_s_per_rad: 15.0,
@@ -180,6 +199,12 @@ pub struct ScenarioFile {
     pub disturbance: Disturbances,
     /// Human-robot interaction.
     pub human: HumanParams,
+    /// The thigh's mount and the body on the carriage.
+    pub hip: HipParams,
+    /// Ground contact.
+    pub ground: GroundParams,
+    /// The wearer's knee and ankle (carriage).
+    pub wearer: WearerParams,
     /// Metric settings.
     pub metrics: MetricsSection,
     /// Pass/fail criteria.
@@ -202,6 +227,9 @@ impl Default for ScenarioFile {
             sensors: SensorParams::default(),
             disturbance: Disturbances::default(),
             human: HumanParams::default(),
+            hip: HipParams::default(),
+            ground: GroundParams::default(),
+            wearer: WearerParams::default(),
             metrics: MetricsSection::default(),
             criteria: Criteria::default(),
         }

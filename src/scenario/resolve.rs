@@ -6,11 +6,15 @@ use super::files::{InputText, Resources};
 use super::{ReferenceKind, Scenario, ScenarioFile};
 use crate::control::{ControllerKind, DtZnn, DtZnnSettings, KneePd, NominalModel, SensorModel, ValveLimit};
 use crate::error::{Error, Result};
+use crate::human::HipMode;
 use crate::hydraulics::{Cylinder, FrictionParams};
 use crate::leg::LegSpec;
+use crate::leg::{foot_points_at, GroundConfig, LegOptions};
 use crate::metrics::{Band, MetricSettings};
-use crate::plant::{LegSetup, LegStart, PlantKind, PlantSetup};
-use crate::reference::{ForceReference, GaitReference, KneeForceReference, RefSample, Sine, BUILTIN_TRIALS};
+use crate::plant::{BodySetup, BodyTargets, LegSetup, LegStart, PlantKind, PlantSetup};
+use crate::reference::{
+    ForceReference, GaitReference, KneeForceReference, RefSample, Sine, WalkingData, WalkingSample, BUILTIN_TRIALS,
+};
 use crate::sim::Model;
 use std::sync::Arc;
 
@@ -68,20 +72,88 @@ impl Ctx<'_> {
         &self.s.source_name
     }
 
-    /// Load the leg model named by `leg.urdf`.
+    /// The plant's leg: `leg.urdf` with its knee and ankle joints, the ankle free with ground
+    /// contact, its mass scale.
     fn leg_model(&mut self) -> Result<Arc<crate::scenario::files::LoadedLeg>> {
         let leg = &self.s.file.leg;
-        let text = self.res.urdf_text(self.src(), &leg.urdf, self.s.base_dir.as_deref())?;
-        check_hash("leg.urdf", &text, &leg.urdf_sha256, &mut self.warnings);
-        let loaded = self.res.leg(&text, &leg.knee_joint).map_err(|e| {
-            Error::input(self.src(), "leg.urdf", format!("{}: {e}", text.origin.trim_start_matches("builtin:")))
-        })?;
+        let options = LegOptions {
+            knee_joint: leg.knee_joint.clone(),
+            ankle_joint: leg.ankle_joint.clone(),
+            ankle_free: self.s.file.ground.enabled,
+            mass_scale: leg.mass_scale,
+        };
+        let (loaded, text) = self.load_leg("leg.urdf", &leg.urdf, &leg.urdf_sha256, &options)?;
         if !text.origin.starts_with("builtin:") {
             self.file.leg.urdf = text.origin.clone();
         }
-        self.file.leg.urdf_sha256 = Some(text.sha256.clone());
-        self.inputs.push(InputRecord { key: "leg.urdf", origin: text.origin, sha256: text.sha256 });
+        self.file.leg.urdf_sha256 = Some(text.sha256);
         Ok(loaded)
+    }
+
+    /// Load and record a URDF named by `key`.
+    fn load_leg(
+        &mut self,
+        key: &'static str,
+        urdf: &str,
+        recorded: &Option<String>,
+        options: &LegOptions,
+    ) -> Result<(Arc<crate::scenario::files::LoadedLeg>, InputText)> {
+        let text = self.res.urdf_text(self.src(), urdf, self.s.base_dir.as_deref())?;
+        check_hash(key, &text, recorded, &mut self.warnings);
+        let loaded = self.res.leg(&text, options).map_err(|e| {
+            Error::input(self.src(), key, format!("{}: {e}", text.origin.trim_start_matches("builtin:")))
+        })?;
+        self.inputs.push(InputRecord { key, origin: text.origin.clone(), sha256: text.sha256.clone() });
+        Ok((loaded, text))
+    }
+
+    /// The controller's leg (`controller.nominal_leg`): the plant's unless it names another
+    /// URDF or mass scale. Its ankle is locked (the cascade's inverse dynamics is the hanging
+    /// leg's).
+    fn nominal_leg(&mut self, plant: &Arc<crate::scenario::files::LoadedLeg>) -> Result<Arc<LegSpec>> {
+        let f = &self.s.file;
+        let n = &f.controller.nominal_leg;
+        if n.urdf.is_none() && n.mass_scale.is_none_or(|m| m == f.leg.mass_scale) {
+            return Ok(plant.model.clone());
+        }
+        let options = LegOptions {
+            knee_joint: f.leg.knee_joint.clone(),
+            ankle_joint: f.leg.ankle_joint.clone(),
+            ankle_free: false,
+            mass_scale: n.mass_scale.unwrap_or(f.leg.mass_scale),
+        };
+        let urdf = n.urdf.clone().unwrap_or_else(|| f.leg.urdf.clone());
+        let (loaded, text) = self.load_leg("controller.nominal_leg.urdf", &urdf, &n.urdf_sha256, &options)?;
+        if n.urdf.is_some() {
+            if !text.origin.starts_with("builtin:") {
+                self.file.controller.nominal_leg.urdf = Some(text.origin.clone());
+            }
+            self.file.controller.nominal_leg.urdf_sha256 = Some(text.sha256);
+        }
+        Ok(loaded.model.clone())
+    }
+
+    /// `hip.mode`, or its default: `reference.drive_hip` (deprecated, with a warning), the
+    /// carriage for a pose, driven for a gait, else fixed.
+    fn hip_mode(&mut self) -> HipMode {
+        let f = &self.s.file;
+        if let Some(d) = f.reference.drive_hip {
+            self.warnings.push(format!(
+                "reference.drive_hip is deprecated: use hip.mode = \"{}\"",
+                if d { "driven" } else { "fixed" }
+            ));
+            self.file.reference.drive_hip = None;
+        }
+        let mode = match (f.hip.mode, f.reference.drive_hip, f.reference.kind) {
+            (Some(m), _, _) => m,
+            (None, Some(true), _) => HipMode::Driven,
+            (None, Some(false), _) => HipMode::Fixed,
+            (None, None, ReferenceKind::Pose) => HipMode::Carriage,
+            (None, None, ReferenceKind::Gait) => HipMode::Driven,
+            (None, None, ReferenceKind::Sine) => HipMode::Fixed,
+        };
+        self.file.hip.mode = Some(mode);
+        mode
     }
 
     /// The gait trajectory named by `reference.gait_trial` / `reference.gait_file`.
@@ -127,43 +199,85 @@ impl Ctx<'_> {
         Ok(GaitReference { cycle: (*cycle).clone(), stride_s, source: text.origin, sha256: text.sha256 })
     }
 
-    /// The force reference; for gait runs also the leg it drives.
-    fn reference(&mut self, leg: Option<&crate::scenario::files::LoadedLeg>) -> Result<ForceReference> {
-        let s = self.s;
-        let f = &s.file;
+    /// The force reference (its cascade on the controller's leg `nominal`), and on the
+    /// carriage the walking data it follows.
+    fn reference(
+        &mut self,
+        leg: Option<&crate::scenario::files::LoadedLeg>,
+        nominal: Option<&Arc<LegSpec>>,
+        mode: HipMode,
+    ) -> Result<(ForceReference, Option<Arc<WalkingData>>)> {
+        let f = &self.s.file;
         match f.reference.kind {
-            ReferenceKind::Sine => Ok(ForceReference::Sine(Sine {
-                amplitude: f.reference.amplitude_n,
-                frequency_hz: f.reference.frequency_hz,
-                phase_rad: f.reference.phase_rad,
-                offset: f.reference.offset_n,
-            })),
+            ReferenceKind::Sine => Ok((
+                ForceReference::Sine(Sine {
+                    amplitude: f.reference.amplitude_n,
+                    frequency_hz: f.reference.frequency_hz,
+                    phase_rad: f.reference.phase_rad,
+                    offset: f.reference.offset_n,
+                }),
+                None,
+            )),
+            ReferenceKind::Pose => Ok((ForceReference::Pose { knee_rad: f.reference.knee_deg.to_radians() }, None)),
             ReferenceKind::Gait => {
-                let leg =
-                    leg.ok_or_else(|| Error::input(self.src(), "reference.kind", "`gait` needs plant.kind = \"leg\""))?;
+                let (leg, nominal) = leg
+                    .zip(nominal)
+                    .ok_or_else(|| Error::input(self.src(), "reference.kind", "`gait` needs plant.kind = \"leg\""))?;
                 let gait = self.gait()?;
                 check_gait_in_leg_range(self.src(), &gait, &leg.model)?;
-                let drive_hip = f.reference.drive_hip;
-                let key = (
-                    self.file.leg.urdf_sha256.clone().unwrap_or_default(),
-                    f.leg.knee_joint.clone(),
-                    gait.sha256.clone(),
-                    f.reference.harmonics,
-                    gait.stride_s.to_bits(),
-                    drive_hip,
-                );
-                let model = leg.model.clone();
-                let fit =
-                    self.res.cascade(key, || KneeForceReference::inverse_dynamics_fit(&gait, &model, drive_hip))?;
-                // The cascade's model of the seal friction: the plant's levels with its own smooth sign.
-                let fr = FrictionParams {
-                    smoothing_velocity_m_s: f.reference.friction_smoothing_velocity_m_s,
-                    ..f.friction.clone()
+                let walking = match mode {
+                    HipMode::Carriage => Some(self.walking(&gait, &leg.model)?),
+                    _ => None,
                 };
-                let k = Arc::new(KneeForceReference::new(gait, model, fr, drive_hip, fit));
-                Ok(ForceReference::Gait(k))
+                let k = self.cascade(gait, nominal, mode, walking.clone())?;
+                Ok((ForceReference::Gait(k), walking))
             }
         }
+    }
+
+    /// The gait cascade on the controller's leg: the inverse-dynamics fit (cached), blended
+    /// with the stance assistance on the carriage, and the friction model.
+    fn cascade(
+        &mut self,
+        gait: GaitReference,
+        nominal: &Arc<LegSpec>,
+        mode: HipMode,
+        walking: Option<Arc<WalkingData>>,
+    ) -> Result<Arc<KneeForceReference>> {
+        let f = &self.s.file;
+        let with_hip = mode != HipMode::Fixed;
+        let assist = walking.as_ref().map(|w| (w.clone(), f.reference.assist_fraction));
+        let key = format!(
+            "{}|{:?}|{}|{}|{}|{with_hip}|{:?}|{}",
+            self.file.leg.urdf_sha256.clone().unwrap_or_default(),
+            (&f.leg.knee_joint, f.controller.nominal_leg.mass_scale.unwrap_or(f.leg.mass_scale)),
+            gait.sha256,
+            f.reference.harmonics,
+            gait.stride_s.to_bits(),
+            assist.as_ref().map(|a| (a.1.to_bits(), a.0.subject_mass_kg.to_bits())),
+            self.file.controller.nominal_leg.urdf_sha256.clone().unwrap_or_default(),
+        );
+        let model = nominal.clone();
+        let fit = self.res.cascade(key, || {
+            KneeForceReference::inverse_dynamics_fit(&gait, &model, with_hip, assist.as_ref().map(|a| (&*a.0, a.1)))
+        })?;
+        // The cascade's model of the seal friction: the plant's levels with its own smooth sign.
+        let fr = FrictionParams {
+            smoothing_velocity_m_s: f.reference.friction_smoothing_velocity_m_s,
+            ..f.friction.clone()
+        };
+        Ok(Arc::new(KneeForceReference::new(gait, model, fr, mode == HipMode::Driven, fit, walking)))
+    }
+
+    /// The walking data of a gait on the carriage (cached per gait, leg and subject).
+    fn walking(&mut self, gait: &GaitReference, model: &Arc<LegSpec>) -> Result<Arc<WalkingData>> {
+        let subject = self.s.file.hip.subject_mass_kg;
+        let key = format!("{}|{}|{}|{:p}", gait.sha256, gait.stride_s.to_bits(), subject.to_bits(), Arc::as_ptr(model));
+        let src = self.src().to_string();
+        self.res.walking(key, || {
+            WalkingData::new(gait.clone(), model, subject)
+                .map_err(|m| Error::input(&src, format!("reference.gait ({})", gait.source), m))
+        })
     }
 }
 
@@ -229,6 +343,116 @@ fn leg_start(s: &Scenario, model: &LegSpec, reference: &ForceReference) -> Resul
     Ok((LegStart { knee_rad: q0, knee_rate_rad_s: qd0, hip }, on_trajectory))
 }
 
+/// The leg plant's setup: start, cuff, and with contact the ground and the body.
+fn leg_setup(
+    s: &Scenario,
+    l: &crate::scenario::files::LoadedLeg,
+    reference: &ForceReference,
+    mode: HipMode,
+    walking: Option<Arc<WalkingData>>,
+) -> Result<LegSetup> {
+    let f = &s.file;
+    let (start, start_on_trajectory) = leg_start(s, &l.model, reference)?;
+    crate::plant::cuff_point_from_model(&l.model, &f.human.cuff_link, f.human.cuff_xyz)
+        .map_err(|m| Error::input(&s.source_name, "human.cuff_link", m))?;
+    let (ground, body) = body_setup(s, &l.model, mode, walking, &start)?;
+    Ok(LegSetup {
+        model: l.model.clone(),
+        mass: l.mass.clone(),
+        start,
+        solver_iterations: f.leg.solver_iterations,
+        cuff: (f.human.cuff_link.clone(), f.human.cuff_xyz),
+        start_on_trajectory,
+        ground,
+        body,
+    })
+}
+
+/// The targets of a pose on the carriage: the angles held, the foot flat (ankle = knee -
+/// hip), the hip as high as the sole reaches, the other leg's share of the subject's weight.
+fn pose_targets(s: &Scenario, model: &LegSpec) -> Result<WalkingSample> {
+    let f = &s.file;
+    let (h, k) = (f.reference.hip_deg.to_radians(), f.reference.knee_deg.to_radians());
+    let fp = foot_points_at(model, h, k, k - h).ok_or_else(|| {
+        Error::input(&s.source_name, "reference.knee_deg", "the leg cannot take this pose (loop or soles)")
+    })?;
+    let share = f.hip.other_leg_share.unwrap_or(0.5);
+    let weight = f.hip.subject_mass_kg * crate::leg::model::GRAVITY_M_S2;
+    let at = |v: f64| RefSample { value: v, ..Default::default() };
+    Ok(WalkingSample {
+        hip: at(h),
+        knee: at(k),
+        ankle: at(k - h),
+        grf_this_n: (1.0 - share) * weight,
+        grf_other_n: share * weight,
+        other_share: share,
+        pelvis_height_m: -fp.lowest.z,
+        stance_weight: 1.0,
+        ..Default::default()
+    })
+}
+
+/// With ground contact: the ground (height, belt) and, on the carriage, the body.
+fn body_setup(
+    s: &Scenario,
+    model: &LegSpec,
+    mode: HipMode,
+    walking: Option<Arc<WalkingData>>,
+    start: &LegStart,
+) -> Result<(Option<GroundConfig>, Option<Arc<BodySetup>>)> {
+    let f = &s.file;
+    let g = &f.ground;
+    if !g.enabled {
+        return Ok((None, None));
+    }
+    let targets = match (mode, walking) {
+        (HipMode::Carriage, Some(w)) => Some(BodyTargets::Walking(w)),
+        (HipMode::Carriage, None) => Some(BodyTargets::Pose(pose_targets(s, model)?)),
+        _ => None,
+    };
+    let height_m = match (g.height_m, &targets) {
+        (Some(h), _) => h,
+        (None, Some(_)) => 0.0,
+        (None, None) => lowest_sole_z(s, model, start)?,
+    };
+    let belt_speed_m_s = g.belt_speed_m_s.unwrap_or(match &targets {
+        Some(BodyTargets::Walking(w)) => w.belt_speed_m_s,
+        _ => 0.0,
+    });
+    let ground = GroundConfig {
+        height_m,
+        friction: g.friction,
+        belt_speed_m_s,
+        contact_frequency_hz: g.contact_frequency_hz,
+        contact_damping_ratio: g.contact_damping_ratio,
+    };
+    let Some(targets) = targets else { return Ok((Some(ground), None)) };
+    let pelvis_mass_kg = f.hip.body_mass_kg.unwrap_or(f.hip.subject_mass_kg - model.leg_mass_kg());
+    if pelvis_mass_kg <= 0.0 {
+        return Err(Error::input(
+            &s.source_name,
+            "hip.body_mass_kg",
+            format!(
+                "the subject ({} kg) minus this leg ({:.2} kg) leaves {pelvis_mass_kg:.2} kg for the body: must be > 0",
+                f.hip.subject_mass_kg,
+                model.leg_mass_kg()
+            ),
+        ));
+    }
+    let ankle_rad = targets.at(0.0).ankle.value;
+    let body = BodySetup { hip: f.hip.clone(), wearer: f.wearer.clone(), targets, pelvis_mass_kg, ankle_rad };
+    Ok((Some(ground), Some(Arc::new(body))))
+}
+
+/// Default ground height without the carriage: the lowest sole point (ankle at 0) at the
+/// start, or over the gait cycle when the hip is driven along it.
+fn lowest_sole_z(s: &Scenario, model: &LegSpec, start: &LegStart) -> Result<f64> {
+    let none = || Error::input(&s.source_name, "ground.enabled", "the URDF has no collision shapes to stand on");
+    let z = |h: f64, k: f64| foot_points_at(model, h, k, 0.0).map(|p| p.lowest.z);
+    let z0 = z(start.hip.map_or(0.0, |h| h.value), start.knee_rad).ok_or_else(none)?;
+    Ok(z0)
+}
+
 /// Design `dtznn` once from the controller's nominal model and what it knows of its sensors.
 fn design_dtznn(s: &Scenario, nominal: NominalModel) -> Result<Option<DtZnn>> {
     let f = &s.file;
@@ -262,32 +486,27 @@ impl Scenario {
             PlantKind::Leg => Some(cx.leg_model()?),
             PlantKind::Bench => None,
         };
-        let reference = cx.reference(leg.as_deref())?;
+        let mode = cx.hip_mode();
+        let nominal = match &leg {
+            Some(l) => Some(cx.nominal_leg(l)?),
+            None => None,
+        };
+        let (reference, walking) = cx.reference(leg.as_deref(), nominal.as_ref(), mode)?;
         let plant = match &leg {
             None => PlantSetup::Bench(f.bench.clone()),
-            Some(l) => {
-                let (start, start_on_trajectory) = leg_start(self, &l.model, &reference)?;
-                crate::plant::cuff_point_from_model(&l.model, &f.human.cuff_link, f.human.cuff_xyz)
-                    .map_err(|m| Error::input(&self.source_name, "human.cuff_link", m))?;
-                PlantSetup::Leg(Box::new(LegSetup {
-                    model: l.model.clone(),
-                    mass: l.mass.clone(),
-                    start,
-                    solver_iterations: f.leg.solver_iterations,
-                    cuff: (f.human.cuff_link.clone(), f.human.cuff_xyz),
-                    start_on_trajectory,
-                }))
-            }
+            Some(l) => PlantSetup::Leg(Box::new(leg_setup(self, l, &reference, mode, walking)?)),
         };
-        let knee_pd = match (&reference, &leg) {
-            (ForceReference::Gait(_), Some(_)) => Some(KneePd {
+        let knee_pd = match (&reference, &nominal) {
+            (ForceReference::Gait(_) | ForceReference::Pose { .. }, Some(model)) => Some(KneePd {
                 kp_nm_per_rad: f.reference.knee_kp_nm_per_rad,
                 kd_nm_s_per_rad: f.reference.knee_kd_nm_s_per_rad,
+                ki_nm_per_rad_s: f.reference.knee_ki_nm_per_rad_s,
+                model: model.clone(),
             }),
             _ => None,
         };
         let band = match (f.metrics.convergence_band_n, f.reference.kind) {
-            (None, ReferenceKind::Gait) => Band::FractionOfPeakReference(0.01),
+            (None, ReferenceKind::Gait | ReferenceKind::Pose) => Band::FractionOfPeakReference(0.01),
             (Some(b), _) => Band::Fixed(b),
             (None, ReferenceKind::Sine) => Band::Fixed(0.01 * f.reference.amplitude_n),
         };

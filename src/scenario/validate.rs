@@ -48,6 +48,13 @@ impl Check<'_> {
             Err(Error::input(self.src, key, format!("must be >= 0, got {v}")))
         }
     }
+    fn range(&self, key: &str, v: f64, lo: f64, hi: f64) -> Result<()> {
+        if (lo..=hi).contains(&v) {
+            Ok(())
+        } else {
+            Err(Error::input(self.src, key, format!("must be in {lo}..={hi}, got {v}")))
+        }
+    }
     fn fail(&self, key: &str, msg: impl Into<String>) -> Error {
         Error::input(self.src, key, msg)
     }
@@ -81,7 +88,8 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     reference(&c, f)?;
     controller(&c, f)?;
     sensors_and_actuator(&c, f)?;
-    leg_human_metrics(&c, f)
+    leg_human_metrics(&c, f)?;
+    walking(&c, f)
 }
 
 /// `[sim]`: positive step, a whole number of steps, at most [`MAX_STEPS`].
@@ -168,7 +176,15 @@ fn reference(c: &Check, f: &ScenarioFile) -> Result<()> {
     }
     c.positive("reference.friction_smoothing_velocity_m_s", rf.friction_smoothing_velocity_m_s)?;
     c.non_negative("reference.knee_kp_nm_per_rad", rf.knee_kp_nm_per_rad)?;
-    c.non_negative("reference.knee_kd_nm_s_per_rad", rf.knee_kd_nm_s_per_rad)
+    c.non_negative("reference.knee_kd_nm_s_per_rad", rf.knee_kd_nm_s_per_rad)?;
+    c.non_negative("reference.knee_ki_nm_per_rad_s", rf.knee_ki_nm_per_rad_s)?;
+    c.range("reference.assist_fraction", rf.assist_fraction, 0.0, 1.0)?;
+    c.range("reference.hip_deg", rf.hip_deg, -60.0, 120.0)?;
+    c.range("reference.knee_deg", rf.knee_deg, -20.0, 160.0)?;
+    if rf.kind == ReferenceKind::Pose && f.plant.kind != PlantKind::Leg {
+        return Err(c.fail("reference.kind", "`pose` holds a knee: it needs plant.kind = \"leg\""));
+    }
+    Ok(())
 }
 
 /// `[controller]`.
@@ -309,6 +325,84 @@ fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
     }
     if (cr.knee_rms_error_deg.is_some() || cr.knee_max_error_deg.is_some()) && f.reference.kind != ReferenceKind::Gait {
         return Err(c.fail("criteria", "knee criteria need a knee reference (reference.kind = \"gait\")"));
+    }
+    Ok(())
+}
+
+/// `[hip]`, `[ground]`, `[wearer]`, the leg's mass scales: ranges and the combinations that
+/// make a body (the carriage needs the ground and a gait or pose to follow).
+fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
+    let h = &f.hip;
+    c.positive("hip.subject_mass_kg", h.subject_mass_kg)?;
+    if let Some(m) = h.body_mass_kg {
+        c.positive("hip.body_mass_kg", m)?;
+    }
+    for (k, v) in [
+        ("hip.stiffness_nm_per_rad", h.stiffness_nm_per_rad),
+        ("hip.damping_nm_s_per_rad", h.damping_nm_s_per_rad),
+        ("hip.tether_stiffness_n_per_m", h.tether_stiffness_n_per_m),
+        ("hip.tether_damping_n_s_per_m", h.tether_damping_n_s_per_m),
+        ("hip.support_stiffness_n_per_m", h.support_stiffness_n_per_m),
+        ("hip.support_damping_n_s_per_m", h.support_damping_n_s_per_m),
+        ("wearer.knee_stiffness_nm_per_rad", f.wearer.knee_stiffness_nm_per_rad),
+        ("wearer.knee_damping_nm_s_per_rad", f.wearer.knee_damping_nm_s_per_rad),
+        ("wearer.ankle_stiffness_nm_per_rad", f.wearer.ankle_stiffness_nm_per_rad),
+        ("wearer.ankle_damping_nm_s_per_rad", f.wearer.ankle_damping_nm_s_per_rad),
+    ] {
+        c.range(k, v, 0.0, 1e7)?;
+    }
+    c.range("hip.moment_share", h.moment_share, 0.0, 1.0)?;
+    c.range("wearer.knee_moment_share", f.wearer.knee_moment_share, 0.0, 1.0)?;
+    c.range("wearer.ankle_moment_share", f.wearer.ankle_moment_share, 0.0, 1.0)?;
+    if let Some(s) = h.other_leg_share {
+        c.range("hip.other_leg_share", s, 0.0, 1.0)?;
+    }
+    c.range("hip.initial_clearance_m", h.initial_clearance_m, 0.0, 0.5)?;
+    let g = &f.ground;
+    c.range("ground.friction", g.friction, 0.0, 5.0)?;
+    c.range("ground.contact_damping_ratio", g.contact_damping_ratio, 0.0, 20.0)?;
+    c.range("ground.contact_frequency_hz", g.contact_frequency_hz, 1.0, 1000.0)?;
+    if let Some(v) = g.belt_speed_m_s {
+        c.range("ground.belt_speed_m_s", v, -10.0, 10.0)?;
+    }
+    c.range("leg.mass_scale", f.leg.mass_scale, 0.2, 5.0)?;
+    if let Some(m) = f.controller.nominal_leg.mass_scale {
+        c.range("controller.nominal_leg.mass_scale", m, 0.2, 5.0)?;
+    }
+    carriage_combinations(c, f)
+}
+
+fn carriage_combinations(c: &Check, f: &ScenarioFile) -> Result<()> {
+    use crate::human::HipMode;
+    let mode = f.hip.mode;
+    if f.ground.enabled && f.plant.kind != PlantKind::Leg {
+        return Err(c.fail("ground.enabled", "ground contact needs plant.kind = \"leg\""));
+    }
+    if let (Some(h), false) = (f.ground.height_m, f.hip.mode == Some(HipMode::Carriage)) {
+        if h >= 0.0 {
+            return Err(c.fail("ground.height_m", format!("the ground must be below the hip (z = 0), got {h} m")));
+        }
+    }
+    if mode == Some(HipMode::Carriage) || (mode.is_none() && f.reference.kind == ReferenceKind::Pose) {
+        if f.plant.kind != PlantKind::Leg {
+            return Err(c.fail("hip.mode", "`carriage` carries a leg: it needs plant.kind = \"leg\""));
+        }
+        if !f.ground.enabled {
+            return Err(c.fail(
+                "ground.enabled",
+                "the pelvis carriage needs the ground to stand on: set ground.enabled = true",
+            ));
+        }
+        if f.reference.kind == ReferenceKind::Sine {
+            return Err(
+                c.fail("hip.mode", "`carriage` follows a gait or a pose: set reference.kind = \"gait\" or \"pose\"")
+            );
+        }
+    } else if f.reference.kind == ReferenceKind::Pose {
+        return Err(c.fail("reference.kind", "`pose` stands on the carriage: hip.mode must be \"carriage\""));
+    }
+    if f.reference.assist_fraction > 0.0 && mode != Some(HipMode::Carriage) {
+        return Err(c.fail("reference.assist_fraction", "stance assistance needs a stance: hip.mode = \"carriage\""));
     }
     Ok(())
 }

@@ -91,6 +91,8 @@ pub struct Simulation {
     k: usize,
     max_substeps: usize,
     substepped_steps: usize,
+    /// The outer loop's knee-error integral (rad s).
+    knee_integral_rad_s: f64,
 }
 
 /// Build the continuous-time controller a scenario asks for.
@@ -121,7 +123,18 @@ impl Simulation {
         let state = State { hyd: sc.cylinder.initial_state(), ..Default::default() };
         let output = matches!(control, ControlBlock::Sampled { .. }).then(ControlOutput::default);
         let held = Held { output, ..Default::default() };
-        Ok(Self { sc, plant, control, controller_names, state, held, k: 0, max_substeps: 1, substepped_steps: 0 })
+        Ok(Self {
+            sc,
+            plant,
+            control,
+            controller_names,
+            state,
+            held,
+            k: 0,
+            max_substeps: 1,
+            substepped_steps: 0,
+            knee_integral_rad_s: 0.0,
+        })
     }
 
     /// The column layout of this run's record.
@@ -129,7 +142,7 @@ impl Simulation {
         Layout {
             knee_reference: self.sc.reference.knee_at(0.0).is_some(),
             leg: self.plant.leg_row().is_some(),
-            contact: false,
+            contact: self.plant.contact_row().is_some(),
         }
     }
 
@@ -200,7 +213,9 @@ impl Simulation {
                     }
                     _ => y.knee_rate_rad_s,
                 };
-                self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, knee_rate);
+                self.knee_integral_rad_s =
+                    d.pd_integral(t_reading, self.knee_integral_rad_s, y.knee_rad, sample_period);
+                self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, knee_rate, self.knee_integral_rad_s);
                 let r = d.reference_at(t, &self.held);
                 let r_next = d.reference_at(t + sample_period, &self.held);
                 let out = ctrl.update(&SampleInput { t_s: t, period_s: sample_period, y: &y, r, r_next });
@@ -209,7 +224,10 @@ impl Simulation {
             }
             ControlBlock::Continuous(_) => {
                 let d = self.dynamics();
-                let pd = d.pd_force(t, self.plant.knee_rad(), self.plant.knee_rate_rad_s());
+                let q = self.plant.knee_rad();
+                self.knee_integral_rad_s = d.pd_integral(t, self.knee_integral_rad_s, q, self.sc.dt_s);
+                let d = self.dynamics();
+                let pd = d.pd_force(t, q, self.plant.knee_rate_rad_s(), self.knee_integral_rad_s);
                 self.held.pd_force_n = pd;
                 if self.k == 0 {
                     let init = Held { output: Some(ControlOutput::default()), ..self.held };

@@ -39,9 +39,17 @@ impl Dynamics<'_> {
     }
 
     /// The gait cascade's outer-loop force for a knee reading at `t` (0 without a cascade).
-    pub fn pd_force(&self, t: f64, knee_rad: f64, knee_rate_rad_s: f64) -> f64 {
-        match (&self.sc.knee_pd, self.sc.leg(), self.sc.reference.knee_at(t)) {
-            (Some(pd), Some(leg), Some(desired)) => pd.force_n(&leg.model, &desired, knee_rad, knee_rate_rad_s),
+    pub fn pd_force(&self, t: f64, knee_rad: f64, knee_rate_rad_s: f64, integral_rad_s: f64) -> f64 {
+        match (&self.sc.knee_pd, self.sc.reference.knee_at(t)) {
+            (Some(pd), Some(desired)) => pd.force_n(&desired, knee_rad, knee_rate_rad_s, integral_rad_s),
+            _ => 0.0,
+        }
+    }
+
+    /// The outer loop's knee-error integral (rad s) after `dt_s` more at reading `knee_rad`.
+    pub fn pd_integral(&self, t: f64, integral_rad_s: f64, knee_rad: f64, dt_s: f64) -> f64 {
+        match (&self.sc.knee_pd, self.sc.reference.knee_at(t)) {
+            (Some(pd), Some(desired)) => pd.integrate(integral_rad_s, desired.value - knee_rad, dt_s),
             _ => 0.0,
         }
     }
@@ -209,7 +217,7 @@ impl Dynamics<'_> {
             lumped_disturbance_n_per_s2: st.lumped_n_per_s2,
             ref_knee_deg: self.sc.reference.knee_at(t).map(|k| k.value.to_degrees()),
             leg: plant.leg_row(),
-            contact: None,
+            contact: plant.contact_row(),
         }
     }
 }

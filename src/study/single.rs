@@ -49,6 +49,7 @@ pub fn run_title(sc: &ResolvedScenario) -> String {
     let reference = match &sc.model.reference {
         crate::reference::ForceReference::Sine(s) => format!("F_d = {} N sine at {} Hz", s.amplitude, s.frequency_hz),
         crate::reference::ForceReference::Gait(k) => format!("gait {}", k.gait.source),
+        crate::reference::ForceReference::Pose { knee_rad } => format!("pose, knee {:.1} deg", knee_rad.to_degrees()),
     };
     format!("{} | {} | {:?} | {}", sc.source_name, f.controller.kind.as_str(), f.plant.kind, reference)
 }

@@ -48,3 +48,6 @@ impl HumanParams {
         self.k_p * force_error_n + self.k_d * force_error_rate_n_per_s
     }
 }
+
+pub mod body;
+pub use body::*;

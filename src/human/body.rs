@@ -1,0 +1,174 @@
+//! The wearer's body in loaded walking (issue 12): the hip on a spring-damper about the data's
+//! angle plus a share of the data's hip moment, the pelvis on a weak horizontal tether and a
+//! "virtual other leg" that supports it, and the wearer's knee and ankle as impedances about
+//! the data's angles plus optional shares of the data's moments.
+//!
+//! ```text
+//! hip torque (flexion +)    = K_h (h_d - h) + C_h (h_d' - h') + s_h * M_hip,data
+//! knee torque (flexion +)   = K_k (k_d - k) + C_k (k_d' - k') - s_k * M_knee,data   (data: extensor +)
+//! ankle torque (dorsi +)    = K_a (a_d - a) + C_a (a_d' - a') - s_a * M_ankle,data  (data: plantarflexor +)
+//! tether force (x)          = -K_t x - C_t x'
+//! support force (z, up)     = s_o * [ GRF_data,total + K_s (z_d - z) + C_s (z_d' - z') ]
+//! ```
+//! `s_o` is the other leg's share of the support (the data's `grf_other / (grf_this +
+//! grf_other)`: 1 in this leg's swing, 0 in its single support; `hip.other_leg_share` when
+//! set), `GRF_data,total` the two feet's data ground reaction times the subject's mass (the
+//! body's weight plus its vertical acceleration), and `z_d` the hip height the data imply
+//! (see `reference::WalkingData`). The other leg is a force on the pelvis, not a body.
+
+use crate::reference::WalkingSample;
+use serde::{Deserialize, Serialize};
+
+/// How the thigh is held.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HipMode {
+    /// Welded at the origin (bench tests of the knee).
+    Fixed,
+    /// A kinematic hip joint that follows the trial's hip angle exactly (hanging leg).
+    Driven,
+    /// A pelvis free in x and z on a carriage, a dynamic hip hinge (loaded walking, standing).
+    Carriage,
+}
+
+/// `[hip]`: the thigh's mount and, on the carriage, the body it carries.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HipParams {
+    /// `fixed`, `driven` or `carriage`. Default: `driven` for gait references, else `fixed`.
+    pub mode: Option<HipMode>,
+    /// The subject's mass (kg): scales the data's moments and ground reaction. Default 75
+    /// (the built-in URDFs' male subject). > 0.
+    pub subject_mass_kg: f64,
+    /// Mass the pelvis carries (kg): the trunk, arms, head and the other leg. Default: the
+    /// subject's mass minus this leg's (URDF links other than the cylinder). > 0.
+    pub body_mass_kg: Option<f64>,
+    /// Hip spring about the data's angle (N m/rad). Default 3000. >= 0.
+    pub stiffness_nm_per_rad: f64,
+    /// Hip damper (N m s/rad). Default 100. >= 0.
+    pub damping_nm_s_per_rad: f64,
+    /// Share of the data's hip moment applied across the hip (0..=1). Default 1.
+    pub moment_share: f64,
+    /// The hip is locked at its initial angle (static tests). Default false.
+    pub locked: bool,
+    /// Horizontal tether of the pelvis to its start (N/m). Default 200 (weak: 0.3 Hz with
+    /// 60 kg). >= 0.
+    pub tether_stiffness_n_per_m: f64,
+    /// Tether damper (N s/m). Default 300. >= 0.
+    pub tether_damping_n_s_per_m: f64,
+    /// The pelvis cannot move horizontally (static tests). Default false.
+    pub tether_locked: bool,
+    /// The virtual other leg's spring toward the data's hip height (N/m). Default 20000. >= 0.
+    pub support_stiffness_n_per_m: f64,
+    /// The virtual other leg's damper (N s/m). Default 2000. >= 0.
+    pub support_damping_n_s_per_m: f64,
+    /// A constant share of the support for the other leg (0..=1) instead of the data's phase
+    /// (standing: 0.5 on two legs). Default: the data's; 0.5 for the pose reference.
+    pub other_leg_share: Option<f64>,
+    /// Height of the sole above the ground at the start (m). Default 0.002. 0..=0.5.
+    pub initial_clearance_m: f64,
+}
+
+impl Default for HipParams {
+    fn default() -> Self {
+        Self {
+            mode: None,
+            subject_mass_kg: 75.0,
+            body_mass_kg: None,
+            stiffness_nm_per_rad: 3000.0,
+            damping_nm_s_per_rad: 100.0,
+            moment_share: 1.0,
+            locked: false,
+            tether_stiffness_n_per_m: 200.0,
+            tether_damping_n_s_per_m: 300.0,
+            tether_locked: false,
+            support_stiffness_n_per_m: 20000.0,
+            support_damping_n_s_per_m: 2000.0,
+            other_leg_share: None,
+            initial_clearance_m: 0.002,
+        }
+    }
+}
+
+/// `[wearer]`: the wearer's own knee and ankle, as impedances about the data's angles.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WearerParams {
+    /// Knee stiffness about the data's angle (N m/rad). Default 1000. >= 0.
+    pub knee_stiffness_nm_per_rad: f64,
+    /// Knee damping (N m s/rad). Default 20. >= 0.
+    pub knee_damping_nm_s_per_rad: f64,
+    /// Share of the data's knee moment the wearer produces (0..=1). Default 0: the stance
+    /// knee moment then comes from the impedance and the exoskeleton only.
+    pub knee_moment_share: f64,
+    /// Ankle stiffness (N m/rad). Default 300. >= 0.
+    pub ankle_stiffness_nm_per_rad: f64,
+    /// Ankle damping (N m s/rad). Default 5. >= 0.
+    pub ankle_damping_nm_s_per_rad: f64,
+    /// Share of the data's ankle moment the wearer produces (0..=1). Default 1 (push-off).
+    pub ankle_moment_share: f64,
+}
+
+impl Default for WearerParams {
+    fn default() -> Self {
+        Self {
+            knee_stiffness_nm_per_rad: 1000.0,
+            knee_damping_nm_s_per_rad: 20.0,
+            knee_moment_share: 0.0,
+            ankle_stiffness_nm_per_rad: 300.0,
+            ankle_damping_nm_s_per_rad: 5.0,
+            ankle_moment_share: 1.0,
+        }
+    }
+}
+
+/// The state of the body the force laws read (rad, rad/s, m, m/s).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BodyState {
+    /// Hip flexion and rate.
+    pub hip: (f64, f64),
+    /// Knee flexion and rate.
+    pub knee: (f64, f64),
+    /// Ankle dorsiflexion and rate.
+    pub ankle: (f64, f64),
+    /// Pelvis displacement from its start (x) and height above the ground (z), m.
+    pub pelvis: [f64; 2],
+    /// Pelvis velocity (x, z), m/s.
+    pub pelvis_rate: [f64; 2],
+}
+
+/// What the body applies over one step (N m, N).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BodyForces {
+    /// Across the hip (flexion +).
+    pub hip_torque_nm: f64,
+    /// The wearer's knee (flexion +).
+    pub knee_torque_nm: f64,
+    /// The wearer's ankle (dorsiflexion +).
+    pub ankle_torque_nm: f64,
+    /// Tether (x) and support (z) on the pelvis.
+    pub pelvis_force_n: [f64; 2],
+}
+
+/// The body's force laws at data sample `d` and state `s` (see the module's table).
+pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s: &BodyState) -> BodyForces {
+    let imp = |k: f64, c: f64, target: &crate::reference::RefSample, (q, qd): (f64, f64)| {
+        k * (target.value - q) + c * (target.rate - qd)
+    };
+    let share = hip.other_leg_share.unwrap_or(d.other_share);
+    let support = share
+        * (d.grf_this_n
+            + d.grf_other_n
+            + hip.support_stiffness_n_per_m * (d.pelvis_height_m - s.pelvis[1])
+            + hip.support_damping_n_s_per_m * (d.pelvis_rate_m_s - s.pelvis_rate[1]));
+    let tether = -hip.tether_stiffness_n_per_m * s.pelvis[0] - hip.tether_damping_n_s_per_m * s.pelvis_rate[0];
+    BodyForces {
+        hip_torque_nm: imp(hip.stiffness_nm_per_rad, hip.damping_nm_s_per_rad, &d.hip, s.hip)
+            + hip.moment_share * d.hip_moment_nm,
+        knee_torque_nm: imp(wearer.knee_stiffness_nm_per_rad, wearer.knee_damping_nm_s_per_rad, &d.knee, s.knee)
+            - wearer.knee_moment_share * d.knee_moment_nm,
+        ankle_torque_nm: imp(wearer.ankle_stiffness_nm_per_rad, wearer.ankle_damping_nm_s_per_rad, &d.ankle, s.ankle)
+            - wearer.ankle_moment_share * d.ankle_moment_nm,
+        pelvis_force_n: [tether, support],
+    }
+}

@@ -1,0 +1,244 @@
+//! Loaded walking: what the gait data imply for a single leg on a treadmill with a virtual
+//! other leg (issue 12). Everything here is read off one averaged gait cycle and the leg's
+//! geometry, once per run setup; the force laws that use it are in `human::body`.
+//!
+//! - Joint targets: hip, knee, ankle angles (Fourier fits, analytic rates).
+//! - Moments and ground reaction (N m/kg, N/kg) as tabulated, times the subject's mass.
+//! - The other leg is this leg half a cycle later. Its share of the body's support at a
+//!   phase is `grf_other / (grf_this + grf_other)`: 1 in this leg's swing, 0 in its single
+//!   support.
+//! - The pelvis height the data imply: the hip sits as high above the ground as the lower of
+//!   the two feet reaches (the foot on the ground carries the hip), from the angles and the
+//!   URDF's sole shapes.
+//! - The belt speed the stance implies: how fast the ankle moves backwards relative to the hip
+//!   between heel strike and toe-off.
+//! - A stance weight in [0, 1]: 1 in this leg's stance, 0 in swing, with raised-cosine
+//!   transitions [`STANCE_BLEND_PCT`] wide centred on heel strike and toe-off.
+
+use super::{CycleTable, GaitReference, RefSample};
+use crate::leg::{foot_points_at, LegSpec};
+
+/// Samples of the data-implied pelvis height over one cycle.
+const PELVIS_SAMPLES: usize = 400;
+/// Width of the stance weight's transitions (% of the cycle).
+pub const STANCE_BLEND_PCT: f64 = 4.0;
+/// Vertical ground reaction (N/kg) above which the data count a foot as on the ground.
+pub const STANCE_THRESHOLD_N_PER_KG: f64 = 0.25;
+
+/// The data of one instant of loaded walking.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct WalkingSample {
+    /// Hip flexion (rad) and its time derivatives.
+    pub hip: RefSample,
+    /// Knee flexion (rad) and its time derivatives.
+    pub knee: RefSample,
+    /// Ankle dorsiflexion (rad) and its time derivatives.
+    pub ankle: RefSample,
+    /// Net internal hip moment (N m, flexor positive).
+    pub hip_moment_nm: f64,
+    /// Net internal knee moment (N m, extensor positive).
+    pub knee_moment_nm: f64,
+    /// Net internal ankle moment (N m, plantarflexor positive).
+    pub ankle_moment_nm: f64,
+    /// Vertical ground reaction on this foot and on the other (N).
+    pub grf_this_n: f64,
+    /// Vertical ground reaction on the other foot (N).
+    pub grf_other_n: f64,
+    /// The other leg's share of the support (0..=1).
+    pub other_share: f64,
+    /// Height of the hip above the ground the data imply (m) and its rate (m/s).
+    pub pelvis_height_m: f64,
+    /// Rate of `pelvis_height_m` (m/s).
+    pub pelvis_rate_m_s: f64,
+    /// Stance weight of this leg (0 swing .. 1 stance).
+    pub stance_weight: f64,
+}
+
+/// The gait data of a loaded-walking run, resolved against a leg.
+#[derive(Debug, Clone)]
+pub struct WalkingData {
+    /// The angle trajectories (and stride time).
+    pub gait: GaitReference,
+    /// Subject mass the moments and the ground reaction are scaled with (kg).
+    pub subject_mass_kg: f64,
+    hip_moment: CycleTable,
+    knee_moment: CycleTable,
+    ankle_moment: CycleTable,
+    grf: CycleTable,
+    /// Hip height above the ground over the cycle (m), sampled at `PELVIS_SAMPLES` points.
+    pelvis: Vec<f64>,
+    /// This leg's heel strike and toe-off (% of the cycle).
+    pub stance_pct: (f64, f64),
+    /// Belt speed the stance kinematics imply (m/s, the surface moving to -x).
+    pub belt_speed_m_s: f64,
+}
+
+impl WalkingData {
+    /// Read the walking data off `gait` for `model` (whose ankle moves) and a subject of
+    /// `subject_mass_kg`. Errors name the missing column or the geometric problem.
+    pub fn new(gait: GaitReference, model: &LegSpec, subject_mass_kg: f64) -> Result<Self, String> {
+        let c = &gait.cycle;
+        let need = |n: &str| c.kinetic(n).cloned().ok_or_else(|| format!("the gait data have no `{n}` column"));
+        if c.hip.is_none() || c.ankle.is_none() {
+            return Err("the gait data need `hip_flexion_deg` and `ankle_dorsiflexion_deg` columns".into());
+        }
+        let grf = need("grf_vertical_n_per_kg")?;
+        let stance_pct = stance_window(&grf)?;
+        let mut w = WalkingData {
+            hip_moment: need("hip_moment_nm_per_kg")?,
+            knee_moment: need("knee_moment_nm_per_kg")?,
+            ankle_moment: need("ankle_moment_nm_per_kg")?,
+            grf,
+            gait,
+            subject_mass_kg,
+            pelvis: Vec::new(),
+            stance_pct,
+            belt_speed_m_s: 0.0,
+        };
+        let depth = |pct: f64| -> Result<(f64, f64), String> {
+            let t = pct / 100.0 * w.gait.stride_s;
+            let (h, k, a) = (w.gait.hip_at(t).value, w.gait.knee_at(t).value, w.angle_ankle(t).value);
+            let p = foot_points_at(model, h, k, a)
+                .ok_or_else(|| format!("the leg cannot take the data's pose at {pct:.1} % (loop or soles)"))?;
+            Ok((-p.lowest.z, p.ankle.x))
+        };
+        let mut pelvis = Vec::with_capacity(PELVIS_SAMPLES);
+        for i in 0..PELVIS_SAMPLES {
+            let pct = i as f64 * 100.0 / PELVIS_SAMPLES as f64;
+            pelvis.push(depth(pct)?.0.max(depth(pct + 50.0)?.0));
+        }
+        let (hs, to) = stance_pct;
+        let stance_s = ((to - hs).rem_euclid(100.0)) / 100.0 * w.gait.stride_s;
+        let belt = (depth(hs)?.1 - depth(to)?.1) / stance_s;
+        (w.pelvis, w.belt_speed_m_s) = (pelvis, belt);
+        Ok(w)
+    }
+
+    fn angle_ankle(&self, t_s: f64) -> RefSample {
+        let k = 100.0 / self.gait.stride_s;
+        self.gait.cycle.ankle.as_ref().map_or(RefSample::default(), |s| {
+            let (v, d1, d2) = s.eval(t_s * k);
+            RefSample { value: v, rate: d1 * k, accel: d2 * k * k }
+        })
+    }
+
+    /// Cycle percentage at `t_s` (0..100).
+    pub fn pct_at(&self, t_s: f64) -> f64 {
+        (t_s / self.gait.stride_s * 100.0).rem_euclid(100.0)
+    }
+
+    /// Stance weight of this leg at cycle percentage `pct` (0 swing .. 1 stance): raised-cosine
+    /// edges [`STANCE_BLEND_PCT`] wide, 0.5 at heel strike and at toe-off.
+    pub fn stance_weight_at_pct(&self, pct: f64) -> f64 {
+        let (hs, to) = self.stance_pct;
+        let len = (to - hs).rem_euclid(100.0);
+        let x = (pct - hs).rem_euclid(100.0);
+        let half = STANCE_BLEND_PCT / 2.0;
+        let edge = |d: f64| 0.5 * (std::f64::consts::PI * d.min(half) / STANCE_BLEND_PCT).sin();
+        if x <= len {
+            0.5 + edge(x.min(len - x))
+        } else {
+            0.5 - edge((x - len).min(100.0 - x))
+        }
+    }
+
+    fn pelvis_at_pct(&self, pct: f64) -> f64 {
+        let u = pct.rem_euclid(100.0) / 100.0 * PELVIS_SAMPLES as f64;
+        let i = (u.floor() as usize).min(PELVIS_SAMPLES - 1);
+        let f = u - i as f64;
+        self.pelvis[i] * (1.0 - f) + self.pelvis[(i + 1) % PELVIS_SAMPLES] * f
+    }
+
+    /// The data at time `t_s` (the cycle repeats every stride).
+    pub fn at(&self, t_s: f64) -> WalkingSample {
+        let pct = self.pct_at(t_s);
+        let m = self.subject_mass_kg;
+        let g_this = self.grf.at(pct).max(0.0) * m;
+        let g_other = self.grf.at(pct + 50.0).max(0.0) * m;
+        let total = g_this + g_other;
+        let dp = 100.0 / PELVIS_SAMPLES as f64;
+        let rate_per_pct = (self.pelvis_at_pct(pct + dp) - self.pelvis_at_pct(pct - dp)) / (2.0 * dp);
+        WalkingSample {
+            hip: self.gait.hip_at(t_s),
+            knee: self.gait.knee_at(t_s),
+            ankle: self.angle_ankle(t_s),
+            hip_moment_nm: self.hip_moment.at(pct) * m,
+            knee_moment_nm: self.knee_moment.at(pct) * m,
+            ankle_moment_nm: self.ankle_moment.at(pct) * m,
+            grf_this_n: g_this,
+            grf_other_n: g_other,
+            other_share: if total > 0.0 { g_other / total } else { 0.5 },
+            pelvis_height_m: self.pelvis_at_pct(pct),
+            pelvis_rate_m_s: rate_per_pct * 100.0 / self.gait.stride_s,
+            stance_weight: self.stance_weight_at_pct(pct),
+        }
+    }
+
+    /// The dataset's vertical ground reaction of this leg at `pct` (N).
+    pub fn grf_at_pct(&self, pct: f64) -> f64 {
+        self.grf.at(pct) * self.subject_mass_kg
+    }
+
+    /// The dataset's knee moment at `pct` (N m, extensor positive).
+    pub fn knee_moment_at_pct(&self, pct: f64) -> f64 {
+        self.knee_moment.at(pct) * self.subject_mass_kg
+    }
+}
+
+/// Heel strike and toe-off (% of the cycle): the ends of the longest run of rows whose
+/// ground reaction exceeds [`STANCE_THRESHOLD_N_PER_KG`], read cyclically at 0.1 % steps.
+fn stance_window(grf: &CycleTable) -> Result<(f64, f64), String> {
+    let n = 1000;
+    let on: Vec<bool> = (0..n).map(|i| grf.at(i as f64 / 10.0) > STANCE_THRESHOLD_N_PER_KG).collect();
+    if on.iter().all(|&b| b) || on.iter().all(|&b| !b) {
+        return Err("the ground reaction has no stance and swing (`grf_vertical_n_per_kg`)".into());
+    }
+    let start = (0..n).find(|&i| on[i] && !on[(i + n - 1) % n]).unwrap_or(0);
+    let (mut best, mut at, mut len) = ((0, 0), start, 0);
+    for k in 0..n {
+        let i = (start + k) % n;
+        if on[i] {
+            if len == 0 {
+                at = i;
+            }
+            len += 1;
+            if len > best.1 {
+                best = (at, len);
+            }
+        } else {
+            len = 0;
+        }
+    }
+    Ok((best.0 as f64 / 10.0, ((best.0 + best.1) % n) as f64 / 10.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::leg::LegOptions;
+    use crate::reference::GaitCycle;
+
+    fn data(trial: &str) -> WalkingData {
+        let (cycle, stride) = GaitCycle::builtin(trial, 12).unwrap().unwrap();
+        let gait = GaitReference { cycle, stride_s: stride, source: trial.into(), sha256: String::new() };
+        let text = crate::plant::BUILTIN_URDFS[0].1;
+        let model = LegSpec::from_urdf_with(text, &LegOptions { ankle_free: true, ..Default::default() }).unwrap();
+        WalkingData::new(gait, &model, 75.0).unwrap()
+    }
+
+    #[test]
+    fn stance_pelvis_and_belt_from_the_comfortable_trial() {
+        let w = data("wbds01_overground_comfortable");
+        let (hs, to) = w.stance_pct;
+        let p: Vec<f64> = (0..100).map(|i| w.at(i as f64 / 100.0 * 1.1).pelvis_height_m).collect();
+        let (lo, hi) = p.iter().fold((f64::MAX, f64::MIN), |a, &v| (a.0.min(v), a.1.max(v)));
+        println!("stance {hs}..{to} belt {} pelvis {lo}..{hi}", w.belt_speed_m_s);
+        for pct in [0.0, 1.0, 2.0, 5.0, 30.0, 59.0, 61.0, 63.0, 80.0, 98.0] {
+            let s = w.at(pct / 100.0 * 1.1);
+            println!(
+                "{pct}: w {:.3} share {:.3} grf {:.0} {:.0}",
+                s.stance_weight, s.other_share, s.grf_this_n, s.grf_other_n
+            );
+        }
+    }
+}
