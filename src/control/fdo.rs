@@ -85,6 +85,16 @@ impl Fdo {
         self.p.gain * (1.0 + r * a.powf(r - 1.0) + a.powf(1.0 / r - 1.0) / r + sig)
     }
 
+    /// d(L*psi)/dXi without the `sig(Xi)^r` term (whose slope is unbounded at 0): the rate
+    /// that limits an explicit integrator's step.
+    pub fn lipschitz_slope(&self, xi: f64) -> f64 {
+        let r = self.p.exponent;
+        let a = xi.abs();
+        let e = (-xi).exp();
+        let sig = if e.is_finite() { 2.0 * e / ((1.0 + e) * (1.0 + e)) } else { 0.0 };
+        self.p.gain * (1.0 + a.powf(1.0 / r - 1.0) / r + sig)
+    }
+
     /// D_hat = L*psi(Xi) (N/s^2).
     pub fn estimate(&self, xi: f64) -> f64 {
         self.p.gain * self.psi(xi)

@@ -90,6 +90,12 @@ pub trait Controller: Send + Sync {
     fn output(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64]) -> ControlOutput;
     /// Time derivative of the internal state (pure). `u` is the output just computed.
     fn derivatives(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]);
+    /// Largest local rate (1/s) of the internal state's own dynamics at force rate
+    /// `force_rate_n_per_s` (N/s): the loop substeps the continuous controller when it would
+    /// outrun the integrator. Default 0 (not stiff).
+    fn stiffness_per_s(&self, _force_rate_n_per_s: f64, _s: &[f64]) -> f64 {
+        0.0
+    }
 
     /// Sampled mode: advance the internal state over one sample period `ts_s` after the
     /// output `u` was computed from the sample. Default: forward Euler on [`Self::derivatives`],

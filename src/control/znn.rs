@@ -85,6 +85,12 @@ impl Controller for Znn {
         }
     }
 
+    /// The observer's `dz/dt` falls with z at `L dpsi/dXi`: its linear, cubic and sigmoid
+    /// parts (the `sig(Xi)^r` part is not Lipschitz at 0; explicit steps only chatter on it).
+    fn stiffness_per_s(&self, force_rate_n_per_s: f64, s: &[f64]) -> f64 {
+        self.compensation.as_ref().map_or(0.0, |(_, fdo)| fdo.lipschitz_slope(force_rate_n_per_s - s[0]))
+    }
+
     fn derivatives(&self, _t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]) {
         if let Some((rbf, fdo)) = &self.compensation {
             let xi = y.force_rate_n_per_s - s[0];

@@ -8,12 +8,11 @@
 //! knee torque (flexion +)   = K_k (k_d - k) + C_k (k_d' - k') - s_k * M_knee,data   (data: extensor +)
 //! ankle torque (dorsi +)    = K_a (a_d - a) + C_a (a_d' - a') - s_a * M_ankle,data  (data: plantarflexor +)
 //! tether force (x)          = -K_t x - C_t x'
-//! support force (z, up)     = s_o * [ GRF_data,total + K_s (z_d - z) + C_s (z_d' - z') ]
+//! support force (z, up)     = s_o * [ m_subject g + K_s (z_d - z) + C_s (z_d' - z') ]
 //! ```
 //! `s_o` is the other leg's share of the support (the data's `grf_other / (grf_this +
 //! grf_other)`: 1 in this leg's swing, 0 in its single support; `hip.other_leg_share` when
-//! set), `GRF_data,total` the two feet's data ground reaction times the subject's mass (the
-//! body's weight plus its vertical acceleration), and `z_d` the hip height the data imply
+//! set), `m_subject g` the subject's weight, and `z_d` the hip height the data imply
 //! (see `reference::WalkingData`). The other leg is a force on the pelvis, not a body.
 
 use crate::reference::WalkingSample;
@@ -43,6 +42,10 @@ pub struct HipParams {
     /// Mass the pelvis carries (kg): the trunk, arms, head and the other leg. Default: the
     /// subject's mass minus this leg's (URDF links other than the cylinder). > 0.
     pub body_mass_kg: Option<f64>,
+    /// Anterior pelvic tilt (deg): the data's hip flexion is measured from the pelvis, which
+    /// leans forward in walking; the carriage's pelvis stays upright, so the thigh follows
+    /// the hip flexion minus this. Default 10 (typical in adult walking). -30..=45.
+    pub pelvic_tilt_deg: f64,
     /// Hip spring about the data's angle (N m/rad). Default 3000. >= 0.
     pub stiffness_nm_per_rad: f64,
     /// Hip damper (N m s/rad). Default 100. >= 0.
@@ -58,10 +61,17 @@ pub struct HipParams {
     pub tether_damping_n_s_per_m: f64,
     /// The pelvis cannot move horizontally (static tests). Default false.
     pub tether_locked: bool,
-    /// The virtual other leg's spring toward the data's hip height (N/m). Default 20000. >= 0.
+    /// The virtual other leg's spring toward the data's hip height (N/m), scaled by its
+    /// share. Default 20000 (stiffer springs force the data's height on a leg whose geometry
+    /// differs from the subject's, and the stance ground reaction loses its shape). >= 0.
     pub support_stiffness_n_per_m: f64,
-    /// The virtual other leg's damper (N s/m). Default 2000. >= 0.
+    /// The virtual other leg's damper (N s/m), scaled by its share. Default 6000 (about 1.6
+    /// times critical with 60 kg). >= 0.
     pub support_damping_n_s_per_m: f64,
+    /// What the virtual other leg carries besides its spring: `weight` (its share of the
+    /// subject's weight) or `data` (the other foot's ground reaction in the data, the body's
+    /// vertical dynamics included). Default `weight`.
+    pub support_force: SupportForce,
     /// A constant share of the support for the other leg (0..=1) instead of the data's phase
     /// (standing: 0.5 on two legs). Default: the data's; 0.5 for the pose reference.
     pub other_leg_share: Option<f64>,
@@ -75,6 +85,7 @@ impl Default for HipParams {
             mode: None,
             subject_mass_kg: 75.0,
             body_mass_kg: None,
+            pelvic_tilt_deg: 10.0,
             stiffness_nm_per_rad: 3000.0,
             damping_nm_s_per_rad: 100.0,
             moment_share: 1.0,
@@ -83,11 +94,22 @@ impl Default for HipParams {
             tether_damping_n_s_per_m: 300.0,
             tether_locked: false,
             support_stiffness_n_per_m: 20000.0,
-            support_damping_n_s_per_m: 2000.0,
+            support_damping_n_s_per_m: 6000.0,
             other_leg_share: None,
+            support_force: SupportForce::Weight,
             initial_clearance_m: 0.002,
         }
     }
+}
+
+/// The force the virtual other leg carries (see [`HipParams::support_force`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SupportForce {
+    /// Its share of the subject's weight.
+    Weight,
+    /// The other foot's data ground reaction.
+    Data,
 }
 
 /// `[wearer]`: the wearer's own knee and ankle, as impedances about the data's angles.
@@ -156,11 +178,14 @@ pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s:
         k * (target.value - q) + c * (target.rate - qd)
     };
     let share = hip.other_leg_share.unwrap_or(d.other_share);
-    let support = share
-        * (d.grf_this_n
-            + d.grf_other_n
-            + hip.support_stiffness_n_per_m * (d.pelvis_height_m - s.pelvis[1])
-            + hip.support_damping_n_s_per_m * (d.pelvis_rate_m_s - s.pelvis_rate[1]));
+    let base = match hip.support_force {
+        SupportForce::Weight => share * hip.subject_mass_kg * crate::leg::model::GRAVITY_M_S2,
+        SupportForce::Data => d.grf_other_n,
+    };
+    let support = base
+        + share
+            * (hip.support_stiffness_n_per_m * (d.pelvis_height_m - s.pelvis[1])
+                + hip.support_damping_n_s_per_m * (d.pelvis_rate_m_s - s.pelvis_rate[1]));
     let tether = -hip.tether_stiffness_n_per_m * s.pelvis[0] - hip.tether_damping_n_s_per_m * s.pelvis_rate[0];
     BodyForces {
         hip_torque_nm: imp(hip.stiffness_nm_per_rad, hip.damping_nm_s_per_rad, &d.hip, s.hip)

@@ -173,6 +173,8 @@ pub struct CarriageConfig {
     pub tether_locked: bool,
     /// The hip joint is locked at `hip_rad` (static tests).
     pub hip_locked: bool,
+    /// Initial ankle dorsiflexion (rad), when the ankle moves.
+    pub ankle_rad: f64,
 }
 
 /// Everything that acts on the leg over one step besides gravity and the ground.
@@ -379,6 +381,22 @@ fn insert_carriage(
     Ok(pelvis)
 }
 
+/// Checked initial joint coordinates: the loop solved at the knee angle, the ankle's on the
+/// carriage.
+fn initial_coords(model: &LegSpec, initial_knee_rad: f64, mount: &Mount, dt_s: f64) -> Result<Vec<f64>, LegError> {
+    if !(dt_s.is_finite() && dt_s > 0.0) {
+        return Err(LegError::InvalidArgument(format!("dt_s must be > 0, got {dt_s}")));
+    }
+    if !initial_knee_rad.is_finite() {
+        return Err(LegError::InvalidArgument("initial knee angle is not finite".into()));
+    }
+    let mut q = model.joint_coords(&model.loop_solution_checked(initial_knee_rad)?);
+    if let (Some(a), Mount::Carriage(c)) = (model.ankle, mount) {
+        q[a] = c.ankle_rad;
+    }
+    Ok(q)
+}
+
 /// The loop closure: a spherical impulse joint at the rod end. Returns it, its anchors in the
 /// two links' frames, and whether the rod is its first body.
 fn insert_closure(
@@ -411,7 +429,7 @@ fn insert_joints(
         if j.kind == JointKind::Fixed {
             continue;
         }
-        let mut gj = to_generic(j, with_limits);
+        let mut gj = to_generic(j, with_limits && Some(ji) == model.ankle);
         let f1 = welds.offset[j.parent] * gj.local_frame1;
         gj.set_local_frame1(f1);
         world
@@ -592,13 +610,7 @@ impl Leg {
         params: LegSolverParams,
         ground: Option<&GroundConfig>,
     ) -> Result<Self, LegError> {
-        if !(dt_s.is_finite() && dt_s > 0.0) {
-            return Err(LegError::InvalidArgument(format!("dt_s must be > 0, got {dt_s}")));
-        }
-        if !initial_knee_rad.is_finite() {
-            return Err(LegError::InvalidArgument("initial knee angle is not finite".into()));
-        }
-        let q = model.joint_coords(&model.loop_solution_checked(initial_knee_rad)?);
+        let q = initial_coords(model, initial_knee_rad, &mount, dt_s)?;
         let mut world = new_world(dt_s, params, ground);
         let welds = Welds::new(model);
         let root = mount.root_pose();
@@ -612,8 +624,9 @@ impl Leg {
             }
             Mount::Carriage(c) => Some(insert_carriage(&mut world, link_body[model.root], &c)?),
         };
-        // On the ground the body's weight can fold the leg: the URDF's joint limits hold it
-        // (hanging runs never reach them, and keep their unlimited joints).
+        // The free ankle has no actuator: on the ground its URDF limits hold the foot. The
+        // knee and the rod keep no Rapier limits (the cylinder's stroke ends are the
+        // hydraulics' hard stops).
         insert_joints(&mut world, model, &welds, &link_body, ground.is_some())?;
         let (closure, anchor1, anchor2, rod_anchor_is_1) = insert_closure(&mut world, model, &welds, &link_body);
         let belt = match ground {
@@ -706,8 +719,10 @@ impl Leg {
         Ok(())
     }
 
-    /// Set the ankle angle (rad, dorsiflexion positive) and rate (rad/s) when the ankle moves,
-    /// e.g. to start with the foot flat; does nothing with a locked ankle.
+    /// Set the ankle angle (rad, dorsiflexion positive) and rate (rad/s) when the ankle moves;
+    /// does nothing with a locked ankle. A jump of the foot into the ground leaves Rapier's
+    /// recycled contacts stale for a step: start with the foot placed through
+    /// [`CarriageConfig::ankle_rad`] instead.
     pub fn set_ankle_state(&mut self, angle_rad: f64, rate_rad_s: f64) -> Result<(), LegError> {
         let Some(link) = self.ankle_link else { return Ok(()) };
         if !(angle_rad.is_finite() && rate_rad_s.is_finite()) {
@@ -722,6 +737,20 @@ impl Leg {
         mb.generalized_velocity_mut()[aid] = rate_rad_s;
         mb.forward_kinematics(&self.world.bodies, false);
         mb.update_rigid_bodies(&mut self.world.bodies, true);
+        // Move the colliders and redo the collision detection now (the multibody writes the
+        // body poses without flagging them for the colliders; a zero-dt step moves nothing),
+        // so the next step does not see the foot where it was before.
+        for &h in &self.bodies {
+            let rb = &mut self.world.bodies[h];
+            let pose = *rb.position();
+            rb.set_position(pose, true);
+        }
+        self.world.integration_parameters.dt = 0.0;
+        self.world.step();
+        self.world.integration_parameters.dt = self.dt;
+        if self.ground.is_some() {
+            self.lab = Some(self.segment_momenta());
+        }
         Ok(())
     }
 
@@ -889,7 +918,7 @@ impl Leg {
         let (actuator_force_n, shank_force) = (forces.actuator_force_n, forces.shank_force);
         let l0 = self.cylinder_length_m();
         let k0 = self.knee_angle_rad();
-        for &h in &self.bodies {
+        for h in self.bodies.iter().copied().chain(self.carriage.map(|c| c.pelvis)) {
             let rb = &mut self.world.bodies[h];
             rb.reset_forces(false);
             rb.reset_torques(false);

@@ -234,6 +234,7 @@ fn build_leg(setup: &LegSetup, dt_s: f64, params: LegSolverParams) -> std::resul
                 pelvis_height_m: ground.map_or(0.0, |g| g.height_m) + d.pelvis_height_m + b.hip.initial_clearance_m,
                 tether_locked: b.hip.tether_locked,
                 hip_locked: b.hip.locked,
+                ankle_rad: b.ankle_rad,
             })
         }
         (None, None) => Mount::Fixed,
@@ -242,16 +243,13 @@ fn build_leg(setup: &LegSetup, dt_s: f64, params: LegSolverParams) -> std::resul
         // hip acceleration the trajectory has.
         (None, Some(h)) => Mount::Driven { hip_rad: h.value, hip_vel_rad_s: h.rate - 0.5 * h.accel * dt_s },
     };
-    let mut leg = match (mount, ground) {
+    let leg = match (mount, ground) {
         (Mount::Fixed, None) => Leg::with_params(model, q0, dt_s, params)?,
         (Mount::Driven { hip_rad, hip_vel_rad_s }, None) => {
             Leg::with_hip(model, q0, hip_rad, hip_vel_rad_s, dt_s, params)?
         }
         (m, g) => Leg::with_config(model, q0, m, dt_s, params, g)?,
     };
-    if let Some(b) = &setup.body {
-        leg.set_ankle_state(b.ankle_rad, 0.0)?;
-    }
     Ok(leg)
 }
 

@@ -7,19 +7,21 @@
 //! - The other leg is this leg half a cycle later. Its share of the body's support at a
 //!   phase is `grf_other / (grf_this + grf_other)`: 1 in this leg's swing, 0 in its single
 //!   support.
-//! - The pelvis height the data imply: the hip sits as high above the ground as the lower of
-//!   the two feet reaches (the foot on the ground carries the hip), from the angles and the
-//!   URDF's sole shapes.
+//! - The pelvis height the data imply: the hip sits as high above the ground as the feet on
+//!   the ground reach (from the angles and the URDF's sole shapes), each foot weighted by the
+//!   vertical load it carries in the data, smoothed by a Fourier fit.
 //! - The belt speed the stance implies: how fast the ankle moves backwards relative to the hip
 //!   between heel strike and toe-off.
 //! - A stance weight in [0, 1]: 1 in this leg's stance, 0 in swing, with raised-cosine
 //!   transitions [`STANCE_BLEND_PCT`] wide centred on heel strike and toe-off.
 
-use super::{CycleTable, GaitReference, RefSample};
+use super::{CycleTable, FourierSeries, GaitReference, RefSample};
 use crate::leg::{foot_points_at, LegSpec};
 
 /// Samples of the data-implied pelvis height over one cycle.
 const PELVIS_SAMPLES: usize = 400;
+/// Harmonics of the fit of the data-implied pelvis height.
+pub const PELVIS_HARMONICS: usize = 20;
 /// Width of the stance weight's transitions (% of the cycle).
 pub const STANCE_BLEND_PCT: f64 = 4.0;
 /// Vertical ground reaction (N/kg) above which the data count a foot as on the ground.
@@ -28,7 +30,8 @@ pub const STANCE_THRESHOLD_N_PER_KG: f64 = 0.25;
 /// The data of one instant of loaded walking.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct WalkingSample {
-    /// Hip flexion (rad) and its time derivatives.
+    /// Thigh angle to the vertical (rad, forward positive: the carriage's hip angle) and its
+    /// time derivatives.
     pub hip: RefSample,
     /// Knee flexion (rad) and its time derivatives.
     pub knee: RefSample,
@@ -61,12 +64,18 @@ pub struct WalkingData {
     pub gait: GaitReference,
     /// Subject mass the moments and the ground reaction are scaled with (kg).
     pub subject_mass_kg: f64,
+    /// Anterior pelvic tilt (rad): the data's hip flexion is the thigh's angle to the pelvis;
+    /// the thigh's angle to the vertical, which the carriage's upright pelvis sets, is the hip
+    /// flexion minus this.
+    pub pelvic_tilt_rad: f64,
     hip_moment: CycleTable,
     knee_moment: CycleTable,
     ankle_moment: CycleTable,
     grf: CycleTable,
-    /// Hip height above the ground over the cycle (m), sampled at `PELVIS_SAMPLES` points.
-    pelvis: Vec<f64>,
+    /// Hip height above the ground over the cycle (m) against % of the cycle: the lower
+    /// foot's reach, smoothed by a [`PELVIS_HARMONICS`]-term Fourier fit (the switch from one
+    /// foot to the other is a kink; the support's damper needs a rate).
+    pelvis: FourierSeries,
     /// This leg's heel strike and toe-off (% of the cycle).
     pub stance_pct: (f64, f64),
     /// Belt speed the stance kinematics imply (m/s, the surface moving to -x).
@@ -76,7 +85,12 @@ pub struct WalkingData {
 impl WalkingData {
     /// Read the walking data off `gait` for `model` (whose ankle moves) and a subject of
     /// `subject_mass_kg`. Errors name the missing column or the geometric problem.
-    pub fn new(gait: GaitReference, model: &LegSpec, subject_mass_kg: f64) -> Result<Self, String> {
+    pub fn new(
+        gait: GaitReference,
+        model: &LegSpec,
+        subject_mass_kg: f64,
+        pelvic_tilt_rad: f64,
+    ) -> Result<Self, String> {
         let c = &gait.cycle;
         let need = |n: &str| c.kinetic(n).cloned().ok_or_else(|| format!("the gait data have no `{n}` column"));
         if c.hip.is_none() || c.ankle.is_none() {
@@ -91,27 +105,47 @@ impl WalkingData {
             grf,
             gait,
             subject_mass_kg,
-            pelvis: Vec::new(),
+            pelvic_tilt_rad,
+            pelvis: FourierSeries::fit(&[0.0, 50.0, 25.0], &[0.0; 3], 100.0, 1),
             stance_pct,
             belt_speed_m_s: 0.0,
         };
         let depth = |pct: f64| -> Result<(f64, f64), String> {
             let t = pct / 100.0 * w.gait.stride_s;
-            let (h, k, a) = (w.gait.hip_at(t).value, w.gait.knee_at(t).value, w.angle_ankle(t).value);
+            let (h, k, a) = (w.thigh_at(t).value, w.gait.knee_at(t).value, w.angle_ankle(t).value);
             let p = foot_points_at(model, h, k, a)
                 .ok_or_else(|| format!("the leg cannot take the data's pose at {pct:.1} % (loop or soles)"))?;
             Ok((-p.lowest.z, p.ankle.x))
         };
-        let mut pelvis = Vec::with_capacity(PELVIS_SAMPLES);
+        let (mut pcts, mut pelvis) = (Vec::with_capacity(PELVIS_SAMPLES), Vec::with_capacity(PELVIS_SAMPLES));
         for i in 0..PELVIS_SAMPLES {
             let pct = i as f64 * 100.0 / PELVIS_SAMPLES as f64;
-            pelvis.push(depth(pct)?.0.max(depth(pct + 50.0)?.0));
+            pcts.push(pct);
+            // The hip is as high as the feet on the ground reach, each weighted by the load it
+            // carries (a foot touching down or pushing off carries little; the swing foot none).
+            let (this, other) = (depth(pct)?.0, depth(pct + 50.0)?.0);
+            let on = |p: f64| w.grf.at(p) > STANCE_THRESHOLD_N_PER_KG;
+            pelvis.push(match (on(pct), on(pct + 50.0)) {
+                (true, true) => this.min(other),
+                (true, false) => this,
+                (false, true) => other,
+                (false, false) => this.max(other),
+            });
         }
+        let pelvis = FourierSeries::fit(&pcts, &pelvis, 100.0, PELVIS_HARMONICS);
         let (hs, to) = stance_pct;
         let stance_s = ((to - hs).rem_euclid(100.0)) / 100.0 * w.gait.stride_s;
         let belt = (depth(hs)?.1 - depth(to)?.1) / stance_s;
         (w.pelvis, w.belt_speed_m_s) = (pelvis, belt);
         Ok(w)
+    }
+
+    /// The thigh's angle to the vertical (rad, forward positive): hip flexion minus the
+    /// pelvic tilt.
+    fn thigh_at(&self, t_s: f64) -> RefSample {
+        let mut h = self.gait.hip_at(t_s);
+        h.value -= self.pelvic_tilt_rad;
+        h
     }
 
     fn angle_ankle(&self, t_s: f64) -> RefSample {
@@ -142,13 +176,6 @@ impl WalkingData {
         }
     }
 
-    fn pelvis_at_pct(&self, pct: f64) -> f64 {
-        let u = pct.rem_euclid(100.0) / 100.0 * PELVIS_SAMPLES as f64;
-        let i = (u.floor() as usize).min(PELVIS_SAMPLES - 1);
-        let f = u - i as f64;
-        self.pelvis[i] * (1.0 - f) + self.pelvis[(i + 1) % PELVIS_SAMPLES] * f
-    }
-
     /// The data at time `t_s` (the cycle repeats every stride).
     pub fn at(&self, t_s: f64) -> WalkingSample {
         let pct = self.pct_at(t_s);
@@ -156,10 +183,9 @@ impl WalkingData {
         let g_this = self.grf.at(pct).max(0.0) * m;
         let g_other = self.grf.at(pct + 50.0).max(0.0) * m;
         let total = g_this + g_other;
-        let dp = 100.0 / PELVIS_SAMPLES as f64;
-        let rate_per_pct = (self.pelvis_at_pct(pct + dp) - self.pelvis_at_pct(pct - dp)) / (2.0 * dp);
+        let (pelvis, rate_per_pct, _) = self.pelvis.eval(pct);
         WalkingSample {
-            hip: self.gait.hip_at(t_s),
+            hip: self.thigh_at(t_s),
             knee: self.gait.knee_at(t_s),
             ankle: self.angle_ankle(t_s),
             hip_moment_nm: self.hip_moment.at(pct) * m,
@@ -168,7 +194,7 @@ impl WalkingData {
             grf_this_n: g_this,
             grf_other_n: g_other,
             other_share: if total > 0.0 { g_other / total } else { 0.5 },
-            pelvis_height_m: self.pelvis_at_pct(pct),
+            pelvis_height_m: pelvis,
             pelvis_rate_m_s: rate_per_pct * 100.0 / self.gait.stride_s,
             stance_weight: self.stance_weight_at_pct(pct),
         }
@@ -223,7 +249,7 @@ mod tests {
         let gait = GaitReference { cycle, stride_s: stride, source: trial.into(), sha256: String::new() };
         let text = crate::plant::BUILTIN_URDFS[0].1;
         let model = LegSpec::from_urdf_with(text, &LegOptions { ankle_free: true, ..Default::default() }).unwrap();
-        WalkingData::new(gait, &model, 75.0).unwrap()
+        WalkingData::new(gait, &model, 75.0, 10f64.to_radians()).unwrap()
     }
 
     #[test]
@@ -233,7 +259,7 @@ mod tests {
         let p: Vec<f64> = (0..100).map(|i| w.at(i as f64 / 100.0 * 1.1).pelvis_height_m).collect();
         let (lo, hi) = p.iter().fold((f64::MAX, f64::MIN), |a, &v| (a.0.min(v), a.1.max(v)));
         println!("stance {hs}..{to} belt {} pelvis {lo}..{hi}", w.belt_speed_m_s);
-        for pct in [0.0, 1.0, 2.0, 5.0, 30.0, 59.0, 61.0, 63.0, 80.0, 98.0] {
+        for pct in (0..100).step_by(4).map(f64::from) {
             let s = w.at(pct / 100.0 * 1.1);
             println!(
                 "{pct}: w {:.3} share {:.3} grf {:.0} {:.0}",

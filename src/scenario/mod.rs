@@ -39,11 +39,16 @@ pub struct SimSection {
     pub duration_s: f64,
     /// `euler`, `ode3` (default, the paper's solver) or `rk4`.
     pub integrator: Integrator,
+    /// Substep a stiff continuous controller too (the FDO's cubic term under a large
+    /// disturbance), so it is integrated as the continuous law it is, up to the substep cap.
+    /// Default false: the controller is integrated at `dt_s` like fixed-step code, and the
+    /// observer diverges beyond the limit the README gives ("Observer limits").
+    pub substep_controller: bool,
 }
 
 impl Default for SimSection {
     fn default() -> Self {
-        Self { dt_s: 0.001, duration_s: 1.0, integrator: Integrator::Ode3 }
+        Self { dt_s: 0.001, duration_s: 1.0, integrator: Integrator::Ode3, substep_controller: false }
     }
 }
 

@@ -271,11 +271,18 @@ impl Ctx<'_> {
 
     /// The walking data of a gait on the carriage (cached per gait, leg and subject).
     fn walking(&mut self, gait: &GaitReference, model: &Arc<LegSpec>) -> Result<Arc<WalkingData>> {
-        let subject = self.s.file.hip.subject_mass_kg;
-        let key = format!("{}|{}|{}|{:p}", gait.sha256, gait.stride_s.to_bits(), subject.to_bits(), Arc::as_ptr(model));
+        let (subject, tilt) = (self.s.file.hip.subject_mass_kg, self.s.file.hip.pelvic_tilt_deg.to_radians());
+        let key = format!(
+            "{}|{}|{}|{}|{:p}",
+            gait.sha256,
+            gait.stride_s.to_bits(),
+            subject.to_bits(),
+            tilt.to_bits(),
+            Arc::as_ptr(model)
+        );
         let src = self.src().to_string();
         self.res.walking(key, || {
-            WalkingData::new(gait.clone(), model, subject)
+            WalkingData::new(gait.clone(), model, subject, tilt)
                 .map_err(|m| Error::input(&src, format!("reference.gait ({})", gait.source), m))
         })
     }
@@ -519,6 +526,7 @@ impl Scenario {
             steps: (f.sim.duration_s / dt_s).round() as usize,
             dt_s,
             integrator: f.sim.integrator,
+            substep_controller: f.sim.substep_controller,
             seed: f.seed,
             sample_every,
             plant,

@@ -352,6 +352,7 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
         c.range(k, v, 0.0, 1e7)?;
     }
     c.range("hip.moment_share", h.moment_share, 0.0, 1.0)?;
+    c.range("hip.pelvic_tilt_deg", h.pelvic_tilt_deg, -30.0, 45.0)?;
     c.range("wearer.knee_moment_share", f.wearer.knee_moment_share, 0.0, 1.0)?;
     c.range("wearer.ankle_moment_share", f.wearer.ankle_moment_share, 0.0, 1.0)?;
     if let Some(s) = h.other_leg_share {

@@ -48,7 +48,7 @@ use crate::control::{
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
 use crate::hydraulics::ActuatorMode;
-use crate::metrics::{Summary, SummaryBuilder};
+use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics};
 use crate::plant::PlantSetup;
 use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs};
 use crate::record::{Layout, MemoryRecord, RecordSink, Tee};
@@ -274,7 +274,7 @@ impl Simulation {
         let v0 = self.plant.piston_at(t).velocity_m_s;
         let r0 = self.dynamics().reference_at(t, &self.held);
         if self.hydraulic() {
-            let n = self.substeps(t)?;
+            let n = self.substeps(t, s0.force_rate_n_per_s)?;
             let d = self.dynamics();
             let (plant, held, h) = (self.plant.as_ref(), &self.held, dt / n as f64);
             let mut x = start.pack();
@@ -315,7 +315,7 @@ impl Simulation {
     /// chamber-pressure rate, spool, piston friction over the effective mass, oil column) must
     /// stay within half the integrator's stability limit. More than [`MAX_SUBSTEPS`] stops the
     /// run with [`Error::Stiff`] naming the state and the step it needs.
-    fn substeps(&mut self, t: f64) -> Result<usize> {
+    fn substeps(&mut self, t: f64, force_rate_n_per_s: f64) -> Result<usize> {
         let dt = self.sc.dt_s;
         let xc = match &self.held.predictor {
             Some(_) => self.state.piston.position_m,
@@ -329,6 +329,13 @@ impl Simulation {
                 (real, real_state) = (fric, "piston velocity (seal friction)");
             }
             omega = (k_oil / p.effective_mass_kg).sqrt();
+        }
+        if let (ControlBlock::Continuous(c), true) = (&self.control, self.sc.substep_controller) {
+            let n = self.controller_names.len();
+            let k = c.stiffness_per_s(force_rate_n_per_s, &self.state.controller[..n]);
+            if k > real {
+                (real, real_state) = (k, "controller observer (FDO)");
+            }
         }
         let (lim_re, lim_im) = self.sc.integrator.stability_limits();
         let n_real = real * dt / (STABILITY_MARGIN * lim_re);
@@ -406,13 +413,26 @@ pub fn run_with_design(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<(Su
     let mut sim = Simulation::new(sc.clone())?;
     let layout = sim.layout();
     let mut metrics = SummaryBuilder::new(sc.metrics);
-    let mut tee = Tee(vec![&mut metrics, sink]);
+    let mut walking = layout.contact.then(|| {
+        let data = sc.leg().and_then(|l| l.body.as_ref()).and_then(|b| match &b.targets {
+            crate::plant::BodyTargets::Walking(w) => Some(w.clone()),
+            crate::plant::BodyTargets::Pose(_) => None,
+        });
+        WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data)
+    });
+    let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut metrics, sink];
+    if let Some(w) = walking.as_mut() {
+        sinks.push(w);
+    }
+    let mut tee = Tee(sinks);
     tee.start(&layout)?;
     for _ in 0..sc.steps {
         sim.step(&mut tee)?;
     }
     sim.finish(&mut tee)?;
+    drop(tee);
     let mut summary = metrics.finish(start.elapsed().as_secs_f64());
+    summary.contact = walking.map(|w| w.finish());
     (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
     summary.sensor_clipped_readings = sim.sensor_clips().into_iter().map(|(k, n)| (k.to_string(), n)).collect();
     Ok((summary, sim.controller_design()))

@@ -22,6 +22,8 @@ pub struct Model {
     pub dt_s: f64,
     /// Integration scheme for the force channel, predictor and controller states.
     pub integrator: Integrator,
+    /// Substep the continuous controller's stiff states too.
+    pub substep_controller: bool,
     /// Seed of every random element.
     pub seed: u64,
     /// Controller sampling: every this many steps (None = continuous).

@@ -9,7 +9,7 @@ use crate::scenario::Scenario;
 /// The parameters the report varies, with the keys of the controller's nominal model they
 /// must be pinned to (so the plant varies and the controller does not), and keys that move
 /// with them to keep the model's relations (static friction >= Coulomb friction).
-pub const ROBUSTNESS_KEYS: [(&str, Option<&str>, Option<&str>); 7] = [
+pub const ROBUSTNESS_KEYS: [(&str, Option<&str>, Option<&str>); 8] = [
     ("hydraulics.beta_pa", Some("controller.nominal.beta_pa"), None),
     ("hydraulics.v0_m3", Some("controller.nominal.v0_m3"), None),
     ("hydraulics.k_q", Some("controller.nominal.k_q"), None),
@@ -17,6 +17,7 @@ pub const ROBUSTNESS_KEYS: [(&str, Option<&str>, Option<&str>); 7] = [
     ("friction.coulomb_n", None, Some("friction.static_n")),
     ("human.k_p", None, None),
     ("human.k_d", None, None),
+    ("leg.mass_scale", Some("controller.nominal_leg.mass_scale"), None),
 ];
 
 /// The paper's Table 2 disturbance forms (constant, random, sine, exponential decay, each of

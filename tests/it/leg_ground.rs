@@ -26,9 +26,9 @@ fn standing(k_deg: f64, g: &GroundConfig, tether_locked: bool) -> (LegSpec, Leg)
         pelvis_height_m: -fp.lowest.z + 1e-3,
         tether_locked,
         hip_locked: true,
+        ankle_rad: k - h,
     };
-    let mut leg = Leg::with_config(&m, k, Mount::Carriage(c), 1e-3, LegSolverParams::default(), Some(g)).unwrap();
-    leg.set_ankle_state(k - h, 0.0).unwrap();
+    let leg = Leg::with_config(&m, k, Mount::Carriage(c), 1e-3, LegSolverParams::default(), Some(g)).unwrap();
     (m, leg)
 }
 
@@ -99,10 +99,10 @@ fn dropped_leg_lands_settles_and_never_gains_energy() {
         pelvis_height_m: -fp.lowest.z + 0.05,
         tether_locked: true,
         hip_locked: true,
+        ankle_rad: k - h,
     };
     let mut leg =
         Leg::with_config(&m, k, Mount::Carriage(c), 1e-3, LegSolverParams::default(), Some(&ground(0.8, 0.0))).unwrap();
-    leg.set_ankle_state(k - h, 0.0).unwrap();
     let (mut e_prev, mut max_rise, mut max_pen, mut landed) = (leg.total_energy_j(), 0.0f64, 0.0f64, false);
     let e0 = e_prev;
     for _ in 0..2000 {

@@ -58,4 +58,14 @@ fn observer_limit_at_one_millisecond() {
         other => panic!("expected divergence, got {:?}", other.map(|o| o.summary.max_abs_force_error_n)),
     }
     assert!(at(50_000.0, 5e-4).is_ok());
+    // With the controller substepped (sim.substep_controller), the same 1 ms run integrates the
+    // continuous observer and tracks.
+    let s = scenario(&[
+        "sim.duration_s=0.5",
+        BETA_10PCT,
+        "disturbance.force_accel=[{kind=\"step\",amplitude=50000.0,time_s=0.0}]",
+        "sim.substep_controller=true",
+    ]);
+    let out = run_scenario(&s).expect("substepped observer");
+    assert!(out.summary.substepped_steps > 0, "no substeps taken");
 }

@@ -2,6 +2,9 @@
 //! rows of a run ([`SummaryBuilder`] is a [`RecordSink`]), so a run of any length needs
 //! constant memory for its figures. Used by the CLI, the studies and the tests.
 
+pub mod walking;
+pub use walking::{ContactSummary, DatasetComparison, WalkingMetrics};
+
 use crate::error::Result;
 use crate::record::{Layout, RecordSink, Row};
 use serde::{Deserialize, Serialize};
@@ -121,6 +124,9 @@ pub struct Summary {
     /// steps / wall_time_s.
     #[serde(default)]
     pub steps_per_second: f64,
+    /// Ground-contact figures (runs with `ground.enabled`), flattened into the summary.
+    #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactSummary>,
 }
 
 fn one() -> usize {
@@ -425,6 +431,7 @@ impl SummaryBuilder {
             sensor_clipped_readings: Default::default(),
             wall_time_s,
             steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
+            contact: None,
         }
     }
 

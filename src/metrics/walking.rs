@@ -1,0 +1,283 @@
+//! Figures of a run with ground contact (issue 12): stance, ground reaction, penetration,
+//! tracking in stance and swing, and the comparison of the cycle-averaged kinetics with the
+//! gait data, the way a gait lab reports them.
+//!
+//! - Stance: a row whose vertical ground reaction exceeds [`STANCE_CONTACT_N`].
+//! - After the run-in (`metrics.settle_s`), every row is binned by its phase in the stride
+//!   (1 % bins) and the bins are averaged over the strides: the cyclic mean.
+//! - Kinetics are low-pass filtered at [`KINETICS_LOWPASS_HZ`] as gait labs do: the cyclic mean
+//!   is periodic, so the filter keeps its Fourier harmonics up to that frequency (zero phase,
+//!   an ideal low-pass). The data's columns get the same filter.
+//! - The stance knee moment is compared over 0-61 % (the data's stance); the extensor peak is
+//!   the largest moment in 5-25 %, the flexor peak the smallest in 25-61 %.
+
+use crate::error::Result;
+use crate::record::{Layout, RecordSink, Row};
+use crate::reference::WalkingData;
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Vertical ground reaction (N) above which a row counts as stance.
+pub const STANCE_CONTACT_N: f64 = 20.0;
+/// Low-pass cut-off of the kinetics comparison (Hz).
+pub const KINETICS_LOWPASS_HZ: f64 = 10.0;
+const BINS: usize = 100;
+
+/// The cycle-averaged kinetics against the gait data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DatasetComparison {
+    /// Strides averaged (the time after the run-in over the stride time).
+    pub strides_averaged: f64,
+    /// Correlation of the vertical ground reaction over the stride with the data's.
+    pub grf_correlation: f64,
+    /// Peak vertical ground reaction over the data's peak.
+    pub grf_peak_ratio: f64,
+    /// Correlation of the knee moment over 0-61 % with the data's.
+    pub knee_moment_stance_correlation: f64,
+    /// Extensor peak (N m, largest moment in 5-25 %) and where (% of the stride).
+    pub extensor_peak_nm: f64,
+    /// Where the extensor peak is (% of the stride).
+    pub extensor_peak_pct: f64,
+    /// The data's extensor peak (N m) and where (%).
+    pub data_extensor_peak_nm: f64,
+    /// Where the data's extensor peak is (%).
+    pub data_extensor_peak_pct: f64,
+    /// Flexor peak (N m, smallest moment in 25-61 %, negative).
+    pub flexor_peak_nm: f64,
+    /// Where the flexor peak is (%).
+    pub flexor_peak_pct: f64,
+    /// The data's flexor peak (N m).
+    pub data_flexor_peak_nm: f64,
+    /// Where the data's flexor peak is (%).
+    pub data_flexor_peak_pct: f64,
+}
+
+/// The contact figures of a run (summary keys, present with ground contact).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ContactSummary {
+    /// Largest vertical ground reaction after the run-in (N; the first landing is in the
+    /// run-in).
+    pub peak_ground_reaction_n: f64,
+    /// Fraction of the time after the run-in in stance.
+    pub stance_fraction: f64,
+    /// Deepest penetration of the sole into the ground (m, whole run).
+    pub max_contact_penetration_m: f64,
+    /// Knee RMS error in stance after the run-in (deg; None without a knee reference or stance).
+    pub knee_rms_error_stance_deg: Option<f64>,
+    /// Knee RMS error in swing after the run-in (deg).
+    pub knee_rms_error_swing_deg: Option<f64>,
+    /// Force RMS error in stance after the run-in (N).
+    pub force_rms_error_stance_n: Option<f64>,
+    /// Force RMS error in swing after the run-in (N).
+    pub force_rms_error_swing_n: Option<f64>,
+    /// The comparison with the gait data (loaded walking only).
+    pub dataset: Option<DatasetComparison>,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Rms {
+    sum: f64,
+    n: usize,
+}
+
+impl Rms {
+    fn add(&mut self, v: f64) {
+        self.sum += v * v;
+        self.n += 1;
+    }
+    fn value(&self) -> Option<f64> {
+        (self.n > 0).then(|| (self.sum / self.n as f64).sqrt())
+    }
+}
+
+/// Accumulates the contact figures row by row.
+#[derive(Debug, Clone)]
+pub struct WalkingMetrics {
+    settle_s: f64,
+    stride_s: Option<f64>,
+    data: Option<Arc<WalkingData>>,
+    grf: [f64; BINS],
+    moment: [f64; BINS],
+    count: [usize; BINS],
+    peak_grf: f64,
+    max_pen: f64,
+    stance_rows: usize,
+    rows_after: usize,
+    knee: [Rms; 2],
+    force: [Rms; 2],
+    /// First and last time after the run-in (s).
+    span_s: Option<(f64, f64)>,
+}
+
+impl WalkingMetrics {
+    /// Figures after `settle_s` (s) of run-in, binned by the phase of `stride_s` (s), compared
+    /// with `data` when given.
+    pub fn new(settle_s: f64, stride_s: Option<f64>, data: Option<Arc<WalkingData>>) -> Self {
+        Self {
+            settle_s,
+            stride_s,
+            data,
+            grf: [0.0; BINS],
+            moment: [0.0; BINS],
+            count: [0; BINS],
+            peak_grf: 0.0,
+            max_pen: 0.0,
+            stance_rows: 0,
+            rows_after: 0,
+            knee: [Rms::default(); 2],
+            force: [Rms::default(); 2],
+            span_s: None,
+        }
+    }
+
+    /// The figures.
+    pub fn finish(&self) -> ContactSummary {
+        let frac = if self.rows_after > 0 { self.stance_rows as f64 / self.rows_after as f64 } else { 0.0 };
+        ContactSummary {
+            peak_ground_reaction_n: self.peak_grf,
+            stance_fraction: frac,
+            max_contact_penetration_m: self.max_pen,
+            knee_rms_error_stance_deg: self.knee[0].value(),
+            knee_rms_error_swing_deg: self.knee[1].value(),
+            force_rms_error_stance_n: self.force[0].value(),
+            force_rms_error_swing_n: self.force[1].value(),
+            dataset: self.compare(),
+        }
+    }
+
+    fn compare(&self) -> Option<DatasetComparison> {
+        let (data, stride) = (self.data.as_ref()?, self.stride_s?);
+        if self.count.contains(&0) {
+            return None;
+        }
+        let mean = |v: &[f64; BINS]| -> Vec<f64> { (0..BINS).map(|i| v[i] / self.count[i] as f64).collect() };
+        let keep = (KINETICS_LOWPASS_HZ * stride).floor() as usize;
+        let at = |i: usize| i as f64 + 0.5;
+        let g = lowpass(&mean(&self.grf), keep);
+        let k = lowpass(&mean(&self.moment), keep);
+        let dg = lowpass(&(0..BINS).map(|i| data.grf_at_pct(at(i))).collect::<Vec<_>>(), keep);
+        let dk = lowpass(&(0..BINS).map(|i| data.knee_moment_at_pct(at(i))).collect::<Vec<_>>(), keep);
+        let max = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let (ext, ext_at) = extremum(&k, 5..25, true);
+        let (dext, dext_at) = extremum(&dk, 5..25, true);
+        let (flx, flx_at) = extremum(&k, 25..61, false);
+        let (dflx, dflx_at) = extremum(&dk, 25..61, false);
+        Some(DatasetComparison {
+            strides_averaged: self.span_s.map_or(0.0, |(a, b)| (b - a) / stride),
+            grf_correlation: correlation(&g, &dg),
+            grf_peak_ratio: max(&g) / max(&dg),
+            knee_moment_stance_correlation: correlation(&k[..61], &dk[..61]),
+            extensor_peak_nm: ext,
+            extensor_peak_pct: at(ext_at),
+            data_extensor_peak_nm: dext,
+            data_extensor_peak_pct: at(dext_at),
+            flexor_peak_nm: flx,
+            flexor_peak_pct: at(flx_at),
+            data_flexor_peak_nm: dflx,
+            data_flexor_peak_pct: at(dflx_at),
+        })
+    }
+}
+
+/// Largest (or smallest) value in `range` and its index.
+fn extremum(v: &[f64], range: std::ops::Range<usize>, largest: bool) -> (f64, usize) {
+    range.fold((if largest { f64::NEG_INFINITY } else { f64::INFINITY }, 0), |best, i| {
+        if (largest && v[i] > best.0) || (!largest && v[i] < best.0) {
+            (v[i], i)
+        } else {
+            best
+        }
+    })
+}
+
+/// Pearson correlation.
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    sab / (saa * sbb).sqrt()
+}
+
+/// Zero-phase low-pass of a periodic sequence: keep the mean and the first `keep` harmonics
+/// (discrete Fourier transform; 100 points).
+pub fn lowpass(v: &[f64], keep: usize) -> Vec<f64> {
+    let n = v.len();
+    let w = std::f64::consts::TAU / n as f64;
+    let coeffs: Vec<(f64, f64)> = (0..=keep.min(n / 2))
+        .map(|k| {
+            let (mut a, mut b) = (0.0, 0.0);
+            for (i, x) in v.iter().enumerate() {
+                let (s, c) = (w * (k * i) as f64).sin_cos();
+                a += x * c;
+                b += x * s;
+            }
+            (a, b)
+        })
+        .collect();
+    (0..n)
+        .map(|i| {
+            coeffs
+                .iter()
+                .enumerate()
+                .map(|(k, (a, b))| {
+                    let scale = if k == 0 || 2 * k == n { 1.0 } else { 2.0 };
+                    let (s, c) = (w * (k * i) as f64).sin_cos();
+                    scale * (a * c + b * s) / n as f64
+                })
+                .sum()
+        })
+        .collect()
+}
+
+impl RecordSink for WalkingMetrics {
+    fn start(&mut self, _layout: &Layout) -> Result<()> {
+        Ok(())
+    }
+
+    fn row(&mut self, r: &Row) -> Result<()> {
+        let Some(c) = r.contact else { return Ok(()) };
+        self.max_pen = self.max_pen.max(c.contact_penetration_m);
+        if r.t_s < self.settle_s - 1e-9 {
+            return Ok(());
+        }
+        self.peak_grf = self.peak_grf.max(c.ground_reaction_vertical_n);
+        let stance = c.ground_reaction_vertical_n > STANCE_CONTACT_N;
+        self.span_s = Some((self.span_s.map_or(r.t_s, |s| s.0), r.t_s));
+        self.rows_after += 1;
+        self.stance_rows += usize::from(stance);
+        let phase = usize::from(!stance);
+        if let (Some(q), Some(l)) = (r.ref_knee_deg, r.leg) {
+            self.knee[phase].add(l.knee_angle_deg - q);
+        }
+        self.force[phase].add(r.force_error_n);
+        if let Some(stride) = self.stride_s {
+            let bin = (((r.t_s / stride).rem_euclid(1.0)) * BINS as f64) as usize;
+            let bin = bin.min(BINS - 1);
+            self.grf[bin] += c.ground_reaction_vertical_n;
+            self.moment[bin] += c.knee_moment_nm;
+            self.count[bin] += 1;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lowpass_keeps_low_harmonics_and_removes_high_ones() {
+        let w = std::f64::consts::TAU / 100.0;
+        let v: Vec<f64> = (0..100).map(|i| 3.0 + (w * i as f64).sin() + 0.5 * (w * 30.0 * i as f64).cos()).collect();
+        let f = lowpass(&v, 11);
+        for (i, x) in f.iter().enumerate() {
+            assert!((x - 3.0 - (w * i as f64).sin()).abs() < 1e-12, "{i}: {x}");
+        }
+        assert!((correlation(&[1.0, 2.0, 3.0], &[2.0, 4.0, 6.5]) - 0.9986).abs() < 1e-3);
+    }
+}
