@@ -20,3 +20,4 @@ mod paper_tables;
 mod sampled;
 mod shipped_outputs;
 mod validation;
+mod walking;

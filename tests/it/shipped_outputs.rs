@@ -18,7 +18,7 @@ use sha2::{Digest, Sha256};
 use std::path::Path;
 use std::process::Command;
 
-const EXPECTED: [(&str, &str); 7] = [
+const EXPECTED: [(&str, &str); 9] = [
     ("default", "f44c3f1360e7d92c6f7e608a92ce2474eac2d6bfd016c5904b33eddbd818a539"),
     ("gait_walk", "228e8d0463ae68ce45790e251fce18ebf6400187747d47aba1e2cd1f77abdca9"),
     ("gait_walk_fast", "20c4fce776de2c1ef893dd41f428d0528fe71effad8151e16a8218669a5091cb"),
@@ -26,6 +26,9 @@ const EXPECTED: [(&str, &str); 7] = [
     ("paper_10hz_gamma300", "814806aa8c7c34483868a89b6441064002bf264a183ccab5508bc0bb67a5fef8"),
     ("paper_2hz_gamma100", "4d2288b14a36198ad62a4f72887dd318270ad33fd15db751b8b631cce1a23e28"),
     ("paper_2hz_gamma200", "f95cd1aac3031b84dd9b08319d850256bd709fae503b79fe9d96823eb8a36b90"),
+    // Added with issue 12 (loaded walking).
+    ("stand", "ebbbef10f639cf4d1cdcca6f29348bde76ade2ec752c41d595f891e73d773a91"),
+    ("gait_treadmill", "e4c60aeb07edf9b8c38ba6087c833a331b09484db61bd01e4abd7912a7f4e683"),
 ];
 
 #[test]
