@@ -37,6 +37,10 @@ const MAX_INERTIA_KG_M2: f64 = 1e4;
 /// Largest joint limit accepted (rad or m).
 const MAX_LIMIT: f64 = 1e4;
 
+/// Most links (and most joints) a leg URDF may have: a leg with its exoskeleton has about ten;
+/// the cap keeps the per-link chain walks of the loader bounded.
+pub const MAX_URDF_LINKS: usize = 256;
+
 /// Parse and validate URDF text into a leg model.
 pub fn parse(text: &str, options: &LegOptions) -> Result<LegSpec, LegError> {
     let knee_joint = options.knee_joint.as_str();
@@ -48,6 +52,13 @@ pub fn parse(text: &str, options: &LegOptions) -> Result<LegSpec, LegError> {
         return Err(LegError::Missing { what: "<robot> root element".into() });
     }
     let robot = urdf_rs::read_from_string(text).map_err(|e| LegError::Urdf(e.to_string()))?;
+    if robot.links.len() > MAX_URDF_LINKS || robot.joints.len() > MAX_URDF_LINKS {
+        return Err(LegError::InvalidArgument(format!(
+            "{} links and {} joints: a leg model has at most {MAX_URDF_LINKS} of each",
+            robot.links.len(),
+            robot.joints.len()
+        )));
+    }
     if !(options.mass_scale.is_finite() && options.mass_scale > 0.0) {
         return Err(LegError::InvalidArgument(format!("mass scale must be > 0, got {}", options.mass_scale)));
     }

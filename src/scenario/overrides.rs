@@ -46,6 +46,9 @@ fn strip_nulls(v: serde_json::Value) -> serde_json::Value {
 /// taken as a string, except an integer too large for TOML's 64-bit signed integers, which is
 /// an error (or, for `seed`, which is unsigned, kept as its decimal text). A table merges into
 /// the table it overrides, key by key.
+/// Most dotted segments a `--set` key may have (the deepest scenario key has 3).
+const MAX_KEY_DEPTH: usize = 8;
+
 pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
     let (key, raw) = set
         .split_once('=')
@@ -54,6 +57,14 @@ pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
     let parts: Vec<&str> = key.split('.').collect();
     if parts.iter().any(|p| p.trim().is_empty()) {
         return Err(Error::input("--set", key, "empty key segment"));
+    }
+    if parts.len() > MAX_KEY_DEPTH {
+        let shown: String = key.chars().take(60).collect();
+        return Err(Error::input(
+            "--set",
+            shown,
+            format!("{} key segments; scenario keys have at most {MAX_KEY_DEPTH}", parts.len()),
+        ));
     }
     let value = parse_value(key, raw.trim())?;
     let mut cur = table;

@@ -52,7 +52,7 @@ fn check_hash(key: &str, input: &InputText, recorded: &Option<String>, warnings:
             warnings.push(format!(
                 "{key}: {} changed since the recorded run (sha256 {} recorded, {} now): the results may differ",
                 input.origin,
-                &r[..r.len().min(12)],
+                r.chars().take(12).collect::<String>(),
                 &input.sha256[..12]
             ));
         }

@@ -63,6 +63,22 @@ fn gait_csv_corpus() {
 }
 
 #[test]
+fn urdf_with_a_huge_fixed_chain_is_refused_at_once() {
+    // Found by fuzzing: 82,000 links welded in a chain made the loader's per-link chain walks
+    // quadratic (minutes); the loader now refuses more than 256 links before any walk.
+    let mut u = String::from("<robot name=\"r\"><link name=\"l0\"/>");
+    for i in 1..100_000 {
+        u.push_str(&format!(
+            "<link name=\"l{i}\"/><joint name=\"j{i}\" type=\"fixed\"><parent link=\"l{}\"/><child link=\"l{i}\"/></joint>",
+            i - 1
+        ));
+    }
+    u.push_str("</robot>");
+    let e = exoleg::scenario::fuzz_urdf(&u).unwrap_err().to_string();
+    assert!(e.contains("at most 256"), "{e}");
+}
+
+#[test]
 fn set_flag_corpus() {
     let (ok, refused) = replay("set_flag", exoleg::scenario::fuzz_set_flags);
     assert!(refused >= 12 && ok >= 3, "{ok} accepted, {refused} refused");
