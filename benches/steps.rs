@@ -1,6 +1,8 @@
 //! Steps per second of whole simulations (`cargo bench`): the coupled leg (Rapier multibody +
-//! hydraulics + ARBFNN-FDO-ZNN, the embedded default scenario) and the bench plant.
-//! Criterion reports throughput in elements/s = simulated steps/s (1 ms steps).
+//! hydraulics + ARBFNN-FDO-ZNN, the embedded default scenario), the same on the reduced engine,
+//! and the bench plant (same controller and hydraulics, no mechanics), whose step is the unit
+//! the README's ratios use. Criterion reports throughput in elements/s = simulated steps/s
+//! (1 ms steps).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use exoleg::record::NullSink;
@@ -10,6 +12,7 @@ fn steps(c: &mut Criterion) {
         ("leg_arbfnn_fdo_znn", exoleg::load(None, &[]).unwrap()),
         ("leg_arbfnn_fdo_znn_4_iterations", exoleg::load(None, &["leg.solver_iterations=4"]).unwrap()),
         ("leg_erl_smc", exoleg::load(None, &["controller.kind=\"erl_smc\""]).unwrap()),
+        ("leg_reduced_arbfnn_fdo_znn", exoleg::load(None, &["leg.engine=\"reduced\""]).unwrap()),
         ("bench_arbfnn_fdo_znn", exoleg::load(None, &["plant.kind=\"bench\""]).unwrap()),
     ];
     let mut g = c.benchmark_group("simulation");

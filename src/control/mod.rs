@@ -80,7 +80,8 @@ pub trait Controller: Send + Sync {
     fn kind(&self) -> &'static str;
     /// Names of the internal states, in order (used in divergence reports and CSV headers).
     fn state_names(&self) -> Vec<String>;
-    /// Number of internal states (<= [`MAX_CONTROLLER_STATES`]).
+    /// Number of internal states (<= [`MAX_CONTROLLER_STATES`]); called at every stage, so a
+    /// controller with states should give it without building the names.
     fn state_len(&self) -> usize {
         self.state_names().len()
     }

@@ -48,6 +48,14 @@ impl Controller for Znn {
         }
     }
 
+    fn state_len(&self) -> usize {
+        if self.compensation.is_some() {
+            1 + RBF_NODES
+        } else {
+            0
+        }
+    }
+
     fn state_names(&self) -> Vec<String> {
         if self.compensation.is_some() {
             std::iter::once("observer_z".to_string())

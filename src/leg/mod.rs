@@ -17,6 +17,7 @@ pub mod ground;
 pub mod model;
 pub mod planar;
 pub mod rapier;
+pub mod reduced;
 pub mod urdf;
 
 pub use error::LegError;
@@ -32,3 +33,4 @@ pub use model::{
     LoopPose,
 };
 pub use rapier::{joint_origin_pose, CarriageConfig, HipCoupling, Leg, LegForces, LegSolverParams, Mount, Pose};
+pub use reduced::{HipMotion, ReducedModel};

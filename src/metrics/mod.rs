@@ -124,6 +124,9 @@ pub struct Summary {
     /// steps / wall_time_s.
     #[serde(default)]
     pub steps_per_second: f64,
+    /// The leg's mechanics engine (`rapier` or `reduced`; absent on the bench).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub engine: Option<String>,
     /// Ground-contact figures (runs with `ground.enabled`), flattened into the summary.
     #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
     pub contact: Option<ContactSummary>,
@@ -432,6 +435,7 @@ impl SummaryBuilder {
             wall_time_s,
             steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
             contact: None,
+            engine: None,
         }
     }
 

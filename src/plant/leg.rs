@@ -42,6 +42,30 @@ pub struct LegParams {
     /// Every link's mass and inertia scaled by this factor (the plant's leg; the controller's
     /// cascade uses `controller.nominal_leg`). Default 1. 0.2..=5.
     pub mass_scale: f64,
+    /// `rapier` (default: any URDF, contact) or `reduced` (the planar closed chain in its knee
+    /// coordinate; no contact, no carriage; see README, "Speed").
+    pub engine: LegEngine,
+}
+
+/// The mechanics engine of the leg.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LegEngine {
+    /// Rapier's multibody with the loop-closure joint.
+    #[default]
+    Rapier,
+    /// The reduced-coordinate engine.
+    Reduced,
+}
+
+impl LegEngine {
+    /// The name in scenarios and summaries.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            LegEngine::Rapier => "rapier",
+            LegEngine::Reduced => "reduced",
+        }
+    }
 }
 
 /// `[ground]`: a flat ground, or a treadmill belt, under the foot (leg plant).
@@ -126,6 +150,7 @@ impl Default for LegParams {
             urdf_sha256: None,
             ankle_joint: "ankle".into(),
             mass_scale: 1.0,
+            engine: LegEngine::Rapier,
         }
     }
 }
@@ -218,6 +243,8 @@ pub struct LegSetup {
     pub ground: Option<crate::leg::GroundConfig>,
     /// The body on the pelvis carriage (`hip.mode = "carriage"`).
     pub body: Option<Arc<BodySetup>>,
+    /// The reduced-coordinate model when `leg.engine = "reduced"`.
+    pub reduced: Option<Arc<crate::leg::ReducedModel>>,
 }
 
 /// The Rapier leg of a setup: welded, on a driven hip, or on the carriage, with the ground

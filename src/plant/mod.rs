@@ -5,8 +5,10 @@
 
 mod bench;
 mod leg;
+mod reduced;
 pub use bench::*;
 pub use leg::*;
+pub use reduced::ReducedLegPlant;
 
 use crate::error::Result;
 use crate::record::{ContactRow, LegRow};

@@ -91,6 +91,7 @@ pub struct Resources {
     texts: Mutex<HashMap<String, InputText>>,
     legs: Mutex<HashMap<(String, String), Arc<LoadedLeg>>>,
     walking: Mutex<HashMap<String, Arc<crate::reference::WalkingData>>>,
+    reduced: Mutex<HashMap<usize, Arc<crate::leg::ReducedModel>>>,
     gaits: Mutex<HashMap<(String, usize), Arc<GaitCycle>>>,
     cascades: Mutex<HashMap<CascadeKey, Arc<FourierSeries>>>,
 }
@@ -158,6 +159,21 @@ impl Resources {
         let l = Arc::new(LoadedLeg { model: Arc::new(model), mass: Arc::new(mass) });
         legs.insert(key, l.clone());
         Ok(l)
+    }
+
+    /// The reduced-coordinate model of a loaded leg (tabulated once per leg).
+    pub fn reduced(
+        &self,
+        leg: &Arc<LegSpec>,
+    ) -> std::result::Result<Arc<crate::leg::ReducedModel>, crate::leg::LegError> {
+        let key = Arc::as_ptr(leg) as usize;
+        let mut c = lock(&self.reduced);
+        if let Some(r) = c.get(&key) {
+            return Ok(r.clone());
+        }
+        let r = Arc::new(crate::leg::ReducedModel::new(leg)?);
+        c.insert(key, r.clone());
+        Ok(r)
     }
 
     /// Walking data for a key (gait, leg, subject), built once with `build`.

@@ -372,6 +372,7 @@ fn leg_setup(
         start_on_trajectory,
         ground,
         body,
+        reduced: None,
     })
 }
 
@@ -501,7 +502,16 @@ impl Scenario {
         let (reference, walking) = cx.reference(leg.as_deref(), nominal.as_ref(), mode)?;
         let plant = match &leg {
             None => PlantSetup::Bench(f.bench.clone()),
-            Some(l) => PlantSetup::Leg(Box::new(leg_setup(self, l, &reference, mode, walking)?)),
+            Some(l) => {
+                let mut setup = leg_setup(self, l, &reference, mode, walking)?;
+                if f.leg.engine == crate::plant::LegEngine::Reduced {
+                    let r = res
+                        .reduced(&l.model)
+                        .map_err(|e| Error::input(&self.source_name, "leg.engine", e.to_string()))?;
+                    setup.reduced = Some(r);
+                }
+                PlantSetup::Leg(Box::new(setup))
+            }
         };
         let knee_pd = match (&reference, &nominal) {
             (ForceReference::Gait(_) | ForceReference::Pose { .. }, Some(model)) => Some(KneePd {

@@ -370,6 +370,14 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
     if let Some(m) = f.controller.nominal_leg.mass_scale {
         c.range("controller.nominal_leg.mass_scale", m, 0.2, 5.0)?;
     }
+    if f.leg.engine == crate::plant::LegEngine::Reduced {
+        if f.ground.enabled {
+            return Err(c.fail("leg.engine", "the reduced engine has no contact: use \"rapier\" with ground.enabled"));
+        }
+        if f.hip.mode == Some(crate::human::HipMode::Carriage) || f.reference.kind == ReferenceKind::Pose {
+            return Err(c.fail("leg.engine", "the reduced engine has no pelvis carriage: use \"rapier\""));
+        }
+    }
     carriage_combinations(c, f)
 }
 

@@ -50,7 +50,7 @@ use crate::human::HumanMode;
 use crate::hydraulics::ActuatorMode;
 use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics};
 use crate::plant::PlantSetup;
-use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs};
+use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs, ReducedLegPlant};
 use crate::record::{Layout, MemoryRecord, RecordSink, Tee};
 use crate::sensors::{SampledSensors, ZeroOrderHold};
 use stage::Dynamics;
@@ -105,7 +105,10 @@ impl Simulation {
     pub fn new(sc: Arc<Model>) -> Result<Self> {
         let plant: Box<dyn Plant> = match &sc.plant {
             PlantSetup::Bench(b) => Box::new(Bench::new(b.clone())),
-            PlantSetup::Leg(l) => Box::new(LegPlant::new(l, sc.dt_s, &sc.source_name)?),
+            PlantSetup::Leg(l) => match &l.reduced {
+                Some(r) => Box::new(ReducedLegPlant::new(l, r.clone(), sc.reference.clone())?),
+                None => Box::new(LegPlant::new(l, sc.dt_s, &sc.source_name)?),
+            },
         };
         let ctrl = build_controller(&sc);
         let controller_names = ctrl.state_names();
@@ -433,6 +436,7 @@ pub fn run_with_design(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<(Su
     drop(tee);
     let mut summary = metrics.finish(start.elapsed().as_secs_f64());
     summary.contact = walking.map(|w| w.finish());
+    summary.engine = sc.leg().map(|l| if l.reduced.is_some() { "reduced" } else { "rapier" }.to_string());
     (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
     summary.sensor_clipped_readings = sim.sensor_clips().into_iter().map(|(k, n)| (k.to_string(), n)).collect();
     Ok((summary, sim.controller_design()))

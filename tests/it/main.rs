@@ -13,6 +13,7 @@ mod leg_coupled;
 mod leg_ground;
 mod leg_hip;
 mod leg_passive;
+mod leg_reduced;
 mod leg_statics;
 mod leg_urdf_errors;
 mod observer;

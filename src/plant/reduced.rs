@@ -1,0 +1,138 @@
+//! The leg on the reduced-coordinate engine (`leg.engine = "reduced"`): the same plant
+//! interface and coupling as [`super::LegPlant`], with the knee integrated in its own coordinate
+//! (see [`crate::leg::ReducedModel`]).
+
+use super::{LegSetup, PistonMotion, PistonPredictor, Plant, PlantInputs};
+use crate::error::{Error, Result};
+use crate::leg::{moment_arm_slope_at, ReducedModel};
+use crate::record::LegRow;
+use crate::reference::{ForceReference, RefSample};
+use std::sync::Arc;
+
+/// The reduced-coordinate leg plant.
+pub struct ReducedLegPlant {
+    model: Arc<ReducedModel>,
+    reference: ForceReference,
+    q: f64,
+    qd: f64,
+    length0_m: f64,
+    length_m: f64,
+    velocity_m_s: f64,
+    free_accel_m_s2: f64,
+    free_accel_trend_m_s2: f64,
+    /// Distance of the cuff point from the knee axis (m).
+    cuff_radius_m: f64,
+    driven_hip: bool,
+    hip_rad: f64,
+}
+
+impl ReducedLegPlant {
+    /// Build the plant from a resolved setup and its reduced model; `reference` drives the hip
+    /// when the setup's hip is driven.
+    pub fn new(setup: &LegSetup, model: Arc<ReducedModel>, reference: ForceReference) -> Result<Self> {
+        let (q, qd) = (setup.start.knee_rad, setup.start.knee_rate_rad_s);
+        let (l, arm) = model.cylinder(q);
+        let cuff = crate::plant::cuff_point_from_model(model.model(), &setup.cuff.0, setup.cuff.1)
+            .map_err(|m| Error::input("reduced engine", "human.cuff_link", m))?;
+        let driven_hip = setup.start.hip.is_some();
+        let hip = setup.start.hip.unwrap_or_default();
+        let qdd = model.acceleration(q, qd, (hip.value, hip.rate, hip.accel), 0.0);
+        let free = arm * qdd + moment_arm_slope_at(model.model(), q) * qd * qd;
+        Ok(Self {
+            reference,
+            q,
+            qd,
+            length0_m: l,
+            length_m: l,
+            velocity_m_s: arm * qd,
+            free_accel_m_s2: free,
+            free_accel_trend_m_s2: 0.0,
+            cuff_radius_m: (cuff[0] * cuff[0] + cuff[2] * cuff[2]).sqrt(),
+            driven_hip,
+            hip_rad: hip.value,
+            model,
+        })
+    }
+
+    fn hip_at(&self, t_s: f64) -> (f64, f64, f64) {
+        if !self.driven_hip {
+            return (0.0, 0.0, 0.0);
+        }
+        let h: RefSample = self.reference.hip_at(t_s).unwrap_or_default();
+        (h.value, h.rate, h.accel)
+    }
+}
+
+impl Plant for ReducedLegPlant {
+    fn piston_at(&self, _t_s: f64) -> PistonMotion {
+        PistonMotion {
+            position_m: self.length_m - self.length0_m,
+            velocity_m_s: self.velocity_m_s,
+            accel_m_s2: self.free_accel_m_s2,
+        }
+    }
+
+    fn piston_predictor(&self) -> Option<PistonPredictor> {
+        Some(PistonPredictor {
+            position_m: self.length_m - self.length0_m,
+            velocity_m_s: self.velocity_m_s,
+            free_accel_m_s2: self.free_accel_m_s2 + self.free_accel_trend_m_s2,
+            effective_mass_kg: self.model.effective_mass_kg(self.q),
+            // RK4 has no substep lead.
+            velocity_lead_s: 0.0,
+            lead_exempt_accel_m_s2: 0.0,
+        })
+    }
+
+    fn knee_rad(&self) -> f64 {
+        self.q
+    }
+
+    fn knee_rate_rad_s(&self) -> f64 {
+        self.qd
+    }
+
+    fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64> {
+        let m = &self.model;
+        let force = inputs.cylinder_force_n;
+        // The cuff force pushes the knee the way that shortens the cylinder for positive w1.
+        let cuff_flex = -m.cylinder(self.q).1.signum() * inputs.cuff_force_n;
+        let cuff_tau = cuff_flex * self.cuff_radius_m;
+        let acc = |t: f64, q: f64, qd: f64| m.acceleration(q, qd, self.hip_at(t), force * m.cylinder(q).1 + cuff_tau);
+        let (q0, v0, h) = (self.q, self.qd, dt_s);
+        let a1 = acc(t_s, q0, v0);
+        let (q2, v2) = (q0 + 0.5 * h * v0, v0 + 0.5 * h * a1);
+        let a2 = acc(t_s + 0.5 * h, q2, v2);
+        let (q3, v3) = (q0 + 0.5 * h * v2, v0 + 0.5 * h * a2);
+        let a3 = acc(t_s + 0.5 * h, q3, v3);
+        let (q4, v4) = (q0 + h * v3, v0 + h * a3);
+        let a4 = acc(t_s + h, q4, v4);
+        self.q = q0 + h / 6.0 * (v0 + 2.0 * v2 + 2.0 * v3 + v4);
+        self.qd = v0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+        let (l1, arm1) = m.cylinder(self.q);
+        let v = arm1 * self.qd;
+        let accel = (v - self.velocity_m_s) / dt_s;
+        let free = accel - force / m.effective_mass_kg(q0);
+        self.free_accel_trend_m_s2 = free - self.free_accel_m_s2;
+        self.free_accel_m_s2 = free;
+        self.velocity_m_s = v;
+        let dl = l1 - self.length_m;
+        self.length_m = l1;
+        self.hip_rad = self.hip_at(t_s + dt_s).0;
+        if !(self.q.is_finite() && self.qd.is_finite() && self.length_m.is_finite()) {
+            return Err(Error::Diverged { time_s: t_s + dt_s, state: "knee_angle_rad".into(), value: self.q });
+        }
+        Ok(dl)
+    }
+
+    fn leg_row(&self) -> Option<LegRow> {
+        Some(LegRow {
+            knee_angle_deg: self.q.to_degrees(),
+            knee_velocity_deg_s: self.qd.to_degrees(),
+            hip_angle_deg: self.hip_rad.to_degrees(),
+            cylinder_length_m: self.length_m,
+            loop_closure_gap_m: 0.0,
+            moment_arm_m: self.model.cylinder(self.q).1,
+        })
+    }
+}
