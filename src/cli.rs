@@ -1,10 +1,10 @@
 //! The command line (clap derive) and the dispatch behind it.
 
 use crate::error::{Error, Result, EXIT_OK};
-use crate::metrics::{Metric, Summary};
+use crate::metrics::Summary;
 use crate::output::{self, OutputDir};
 use crate::scenario::{ResolvedScenario, Resources, Scenario};
-use crate::study::{self, compare, robustness, sweep};
+use crate::study::{self, compare, robustness, shard, sweep};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
@@ -29,6 +29,14 @@ pub struct SweepArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Run only shard K of N (0-based: the runs whose index % N == K; e.g.
+    /// `--shard $SLURM_ARRAY_TASK_ID/N`): writes DIR/runs.jsonl and DIR/shard.json for
+    /// `exoleg merge`.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+    /// Print the expanded runs as JSON lines (index, overrides) and exit without running.
+    #[arg(long)]
+    pub plan: bool,
 }
 
 /// Sub-commands.
@@ -91,6 +99,16 @@ pub enum Command {
         /// Shared options.
         #[command(flatten)]
         common: SweepArgs,
+    },
+    /// Merge the shard folders of a sharded sweep or robustness report into what the
+    /// unsharded run writes (runs.jsonl, aggregate.csv, plots). Every shard exactly once.
+    Merge {
+        /// The shard folders (each with shard.json and runs.jsonl).
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        /// Output directory.
+        #[arg(long, default_value = "out/merged")]
+        out: PathBuf,
     },
     /// Run the paper's eight cases (Tables 3 and 4) and print ours next to the paper's.
     Compare {
@@ -184,25 +202,6 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bo
     }
 }
 
-/// Run a plan into `dir` (runs.jsonl, aggregate.csv, optional run folders).
-fn run_plan_into(
-    base: &Scenario,
-    plan: &sweep::Plan,
-    res: &Resources,
-    opts: &sweep::RunOptions,
-    dir: &OutputDir,
-    run_outputs: bool,
-) -> Result<sweep::Aggregate> {
-    let path = dir.path().join("runs.jsonl");
-    let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
-    let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
-    let agg = sweep::run_plan(base, plan, res, opts, run_outputs.then_some(dir.path()), &mut w)?;
-    use std::io::Write;
-    w.flush().map_err(werr)?;
-    output::write_atomic(&dir.path().join("aggregate.csv"), agg.csv().as_bytes())?;
-    Ok(agg)
-}
-
 /// `exoleg sweep`.
 fn cmd_sweep(
     scenario: PathBuf,
@@ -222,57 +221,91 @@ fn cmd_sweep(
     } else {
         return Err(Error::input("sweep", "", "give --grid key=v1,v2,... or --monte-carlo N --vary key=dist(...)"));
     };
+    run_study(&base, &base.source_name, &plan, shard::StudyKind::Sweep, out, run_outputs, &common)
+}
+
+/// Run a study's plan (or print it, or run one shard of it) into `out`.
+fn run_study(
+    base: &Scenario,
+    source_name: &str,
+    plan: &sweep::Plan,
+    study: shard::StudyKind,
+    out: PathBuf,
+    run_outputs: bool,
+    common: &SweepArgs,
+) -> Result<i32> {
+    if common.plan {
+        let stdout = std::io::stdout();
+        shard::write_plan(plan, &mut stdout.lock())?;
+        return Ok(EXIT_OK);
+    }
+    let sh = common.shard.as_deref().map(shard::parse_shard).transpose()?.unwrap_or((0, 1));
     let res = Resources::new();
-    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: (0, 1) };
-    sweep::validate_plan(&base, &plan, &res, &opts)?;
+    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: sh };
+    sweep::validate_plan(base, plan, &res, &opts)?;
     let dir = OutputDir::prepare(&out, "--out")?;
     let start = std::time::Instant::now();
-    let agg = run_plan_into(&base, &plan, &res, &opts, &dir, run_outputs)?;
+    let path = dir.path().join("runs.jsonl");
+    let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
+    let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
+    let agg = sweep::run_plan(base, plan, &res, &opts, run_outputs.then_some(dir.path()), &mut w)?;
+    std::io::Write::flush(&mut w).map_err(werr)?;
+    drop(w);
+    let title = if common.shard.is_some() {
+        let meta = shard::ShardMeta {
+            format: shard::SHARD_FORMAT.into(),
+            study: study.clone(),
+            plan_hash: shard::plan_hash(base, plan)?,
+            runs: plan.len(),
+            shard: [sh.0, sh.1],
+            source_name: source_name.to_string(),
+            scenario: base.file.clone(),
+        };
+        shard::write_shard_meta(dir.path(), &meta)?;
+        format!("shard {}/{}: {} runs ({} diverged)", sh.0, sh.1, agg.runs, agg.failed)
+    } else {
+        shard::write_study_outputs(dir.path(), &study, &base.file, source_name, &agg)?
+    };
     dir.commit()?;
     let wall = start.elapsed().as_secs_f64();
-    println!("{} runs in {wall:.2} s ({} diverged); {}", agg.runs, agg.failed, out.display());
+    println!("{title}; {wall:.2} s; {}", out.display());
     print!("{}", agg.csv());
-    Ok(EXIT_OK)
+    match study {
+        shard::StudyKind::Robustness { .. } if common.shard.is_none() => robustness_verdict(&base.file, &agg, &out),
+        _ => Ok(EXIT_OK),
+    }
+}
+
+/// The robustness report's verdict: exit 4 unless every run passes.
+fn robustness_verdict(base: &crate::scenario::ScenarioFile, agg: &sweep::Aggregate, out: &Path) -> Result<i32> {
+    let verdict = if base.criteria.any() {
+        " the scenario's criteria"
+    } else {
+        " (the scenario sets no [criteria]: only divergence fails)"
+    };
+    println!("{}/{} runs pass{verdict} ({} diverged); report in {}", agg.passed, agg.runs, agg.failed, out.display());
+    if agg.passed == agg.runs {
+        Ok(EXIT_OK)
+    } else {
+        Err(Error::Criteria(format!("{} of {} robustness runs failed", agg.runs - agg.passed, agg.runs)))
+    }
 }
 
 /// `exoleg robustness`.
 fn cmd_robustness(scenario: PathBuf, percent: f64, samples: usize, out: PathBuf, common: SweepArgs) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.sets)?;
     let (pinned, plan) = robustness::robustness_plan(&base, samples, percent)?;
-    let res = Resources::new();
-    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: (0, 1) };
-    sweep::validate_plan(&pinned, &plan, &res, &opts)?;
-    let dir = OutputDir::prepare(&out, "--out")?;
-    let agg = run_plan_into(&pinned, &plan, &res, &opts, &dir, false)?;
-    let c = &base.file.criteria;
-    let mut panels = vec![
-        (
-            "max |F_L - F_d| after settling (N)",
-            agg.values(Metric::MaxAbsForceErrorAfterSettle).to_vec(),
-            c.max_force_error_n,
-        ),
-        (
-            "RMS force error after settling (N)",
-            agg.values(Metric::RmsForceErrorAfterSettle).to_vec(),
-            c.rms_force_error_n,
-        ),
-    ];
-    if base.file.reference.kind == crate::scenario::ReferenceKind::Gait {
-        panels.push(("knee RMS error (deg)", agg.values(Metric::KneeRmsError).to_vec(), c.knee_rms_error_deg));
-        panels.push(("knee max |error| (deg)", agg.values(Metric::KneeMaxAbsError).to_vec(), c.knee_max_error_deg));
-    }
-    let title = format!("{}: +-{percent}% parameters, Table 2 disturbances, {} runs", base.source_name, agg.runs);
-    output::histograms_png(&dir.path().join("robustness.png"), &title, &panels)?;
-    dir.commit()?;
-    println!("{title}");
-    print!("{}", agg.csv());
-    let verdict =
-        if c.any() { " the scenario's criteria" } else { " (the scenario sets no [criteria]: only divergence fails)" };
-    println!("{}/{} runs pass{verdict} ({} diverged); report in {}", agg.passed, agg.runs, agg.failed, out.display());
-    if agg.passed == agg.runs {
-        Ok(EXIT_OK)
-    } else {
-        Err(Error::Criteria(format!("{} of {} robustness runs failed", agg.runs - agg.passed, agg.runs)))
+    run_study(&pinned, &base.source_name, &plan, shard::StudyKind::Robustness { percent }, out, false, &common)
+}
+
+/// `exoleg merge`.
+fn cmd_merge(shards: Vec<PathBuf>, out: PathBuf) -> Result<i32> {
+    let m = shard::merge(&shards, &out)?;
+    println!("{}; {} shards merged into {}", m.title, shards.len(), out.display());
+    print!("{}", m.aggregate.csv());
+    match m.meta.study {
+        shard::StudyKind::Robustness { .. } => robustness_verdict(&m.meta.scenario, &m.aggregate, &out),
+        shard::StudyKind::Sweep => Ok(EXIT_OK),
     }
 }
 
@@ -322,6 +355,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Robustness { scenario, percent, samples, out, common } => {
             cmd_robustness(scenario, percent, samples, out, common)
         }
+        Command::Merge { shards, out } => cmd_merge(shards, out),
         Command::Compare { firmware: true, json, sets, .. } => cmd_firmware(json, sets),
         Command::Compare { scenario, plant, json, sets, .. } => cmd_compare(scenario, plant, json, sets),
     }

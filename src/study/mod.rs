@@ -5,6 +5,7 @@ pub mod compare;
 pub mod firmware;
 pub mod gait_test;
 pub mod robustness;
+pub mod shard;
 mod single;
 pub mod sweep;
 

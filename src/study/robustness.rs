@@ -57,3 +57,35 @@ pub fn robustness_plan(base: &Scenario, n: usize, percent: f64) -> Result<(Scena
     let seed = base.file.seed;
     Ok((base, Plan::MonteCarlo { n, vary, seed }))
 }
+
+/// Write `robustness.png` (histograms of the figures with the criteria's limits) for the runs
+/// aggregated in `agg`, into `dir`. Returns the report's title line.
+pub fn write_report_png(
+    dir: &std::path::Path,
+    base: &crate::scenario::ScenarioFile,
+    source_name: &str,
+    percent: f64,
+    agg: &super::sweep::Aggregate,
+) -> Result<String> {
+    use crate::metrics::Metric;
+    let c = &base.criteria;
+    let mut panels = vec![
+        (
+            "max |F_L - F_d| after settling (N)",
+            agg.values(Metric::MaxAbsForceErrorAfterSettle).to_vec(),
+            c.max_force_error_n,
+        ),
+        (
+            "RMS force error after settling (N)",
+            agg.values(Metric::RmsForceErrorAfterSettle).to_vec(),
+            c.rms_force_error_n,
+        ),
+    ];
+    if base.reference.kind == crate::scenario::ReferenceKind::Gait {
+        panels.push(("knee RMS error (deg)", agg.values(Metric::KneeRmsError).to_vec(), c.knee_rms_error_deg));
+        panels.push(("knee max |error| (deg)", agg.values(Metric::KneeMaxAbsError).to_vec(), c.knee_max_error_deg));
+    }
+    let title = format!("{source_name}: +-{percent}% parameters, Table 2 disturbances, {} runs", agg.runs);
+    crate::output::histograms_png(&dir.join("robustness.png"), &title, &panels)?;
+    Ok(title)
+}

@@ -19,6 +19,7 @@ mod leg_urdf_errors;
 mod observer;
 mod paper_tables;
 mod sampled;
+mod shard;
 mod shipped_outputs;
 mod validation;
 mod walking;
