@@ -213,14 +213,7 @@ fn cmd_sweep(
     common: SweepArgs,
 ) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.sets)?;
-    let plan = if let Some(n) = monte_carlo {
-        let vary: Vec<(String, sweep::Dist)> = vary.iter().map(|v| sweep::parse_vary(v)).collect::<Result<_>>()?;
-        sweep::Plan::monte_carlo(&base, n, &vary, base.file.seed)?
-    } else if !grids.is_empty() {
-        sweep::Plan::grid(grids.iter().map(|g| sweep::parse_grid(g)).collect::<Result<_>>()?)?
-    } else {
-        return Err(Error::input("sweep", "", "give --grid key=v1,v2,... or --monte-carlo N --vary key=dist(...)"));
-    };
+    let plan = sweep::plan_from_args(&base, &grids, monte_carlo, &vary)?;
     run_study(&base, &base.source_name, &plan, shard::StudyKind::Sweep, out, run_outputs, &common)
 }
 
@@ -239,34 +232,11 @@ fn run_study(
         shard::write_plan(plan, &mut stdout.lock())?;
         return Ok(EXIT_OK);
     }
-    let sh = common.shard.as_deref().map(shard::parse_shard).transpose()?.unwrap_or((0, 1));
-    let res = Resources::new();
-    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: sh };
-    sweep::validate_plan(base, plan, &res, &opts)?;
-    let dir = OutputDir::prepare(&out, "--out")?;
+    let sh = common.shard.as_deref().map(shard::parse_shard).transpose()?;
+    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: sh.unwrap_or((0, 1)) };
     let start = std::time::Instant::now();
-    let path = dir.path().join("runs.jsonl");
-    let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
-    let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
-    let agg = sweep::run_plan(base, plan, &res, &opts, run_outputs.then_some(dir.path()), &mut w)?;
-    std::io::Write::flush(&mut w).map_err(werr)?;
-    drop(w);
-    let title = if common.shard.is_some() {
-        let meta = shard::ShardMeta {
-            format: shard::SHARD_FORMAT.into(),
-            study: study.clone(),
-            plan_hash: shard::plan_hash(base, plan)?,
-            runs: plan.len(),
-            shard: [sh.0, sh.1],
-            source_name: source_name.to_string(),
-            scenario: base.file.clone(),
-        };
-        shard::write_shard_meta(dir.path(), &meta)?;
-        format!("shard {}/{}: {} runs ({} diverged)", sh.0, sh.1, agg.runs, agg.failed)
-    } else {
-        shard::write_study_outputs(dir.path(), &study, &base.file, source_name, &agg)?
-    };
-    dir.commit()?;
+    let done = shard::run_study_into(base, source_name, plan, &study, &opts, sh.is_some(), run_outputs, &out)?;
+    let (title, agg) = (done.title, done.aggregate);
     let wall = start.elapsed().as_secs_f64();
     println!("{title}; {wall:.2} s; {}", out.display());
     print!("{}", agg.csv());

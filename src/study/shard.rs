@@ -223,3 +223,55 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Merged> {
     dir.commit()?;
     Ok(Merged { title, meta, aggregate: agg })
 }
+
+/// What a study run produced.
+#[derive(Debug, Clone)]
+pub struct StudyDone {
+    /// The report's title line.
+    pub title: String,
+    /// The aggregated runs (this shard's, when sharded).
+    pub aggregate: Aggregate,
+}
+
+/// Run a study's plan (all of it, or the shard in `opts.shard` when `sharded`) into the folder
+/// `out`, atomically: `runs.jsonl`, and `shard.json` for a shard or the study's other outputs
+/// (`aggregate.csv`, plots) for the whole plan. The CLI and the Python package both use it.
+#[allow(clippy::too_many_arguments)]
+pub fn run_study_into(
+    base: &Scenario,
+    source_name: &str,
+    plan: &Plan,
+    study: &StudyKind,
+    opts: &super::sweep::RunOptions,
+    sharded: bool,
+    run_outputs: bool,
+    out: &Path,
+) -> Result<StudyDone> {
+    let res = crate::scenario::Resources::new();
+    super::sweep::validate_plan(base, plan, &res, opts)?;
+    let dir = OutputDir::prepare(out, "--out")?;
+    let path = dir.path().join("runs.jsonl");
+    let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
+    let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
+    let agg = super::sweep::run_plan(base, plan, &res, opts, run_outputs.then_some(dir.path()), &mut w)?;
+    w.flush().map_err(werr)?;
+    drop(w);
+    let title = if sharded {
+        let (k, n) = opts.shard;
+        let meta = ShardMeta {
+            format: SHARD_FORMAT.into(),
+            study: study.clone(),
+            plan_hash: plan_hash(base, plan)?,
+            runs: plan.len(),
+            shard: [k, n],
+            source_name: source_name.to_string(),
+            scenario: base.file.clone(),
+        };
+        write_shard_meta(dir.path(), &meta)?;
+        format!("shard {k}/{n}: {} runs ({} diverged)", agg.runs, agg.failed)
+    } else {
+        write_study_outputs(dir.path(), study, &base.file, source_name, &agg)?
+    };
+    dir.commit()?;
+    Ok(StudyDone { title, aggregate: agg })
+}

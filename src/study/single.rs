@@ -1,6 +1,6 @@
 //! One run written to an output folder: streamed `timeseries.csv`, `summary.json` and plots.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::metrics::{check_criteria, CriterionResult, Summary};
 use crate::output::{force_tracking_png, knee_tracking_png, write_json, CsvSink, PlotBuffer};
 use crate::record::{RecordSink, Tee};
@@ -52,6 +52,41 @@ pub fn run_title(sc: &ResolvedScenario) -> String {
         crate::reference::ForceReference::Pose { knee_rad } => format!("pose, knee {:.1} deg", knee_rad.to_degrees()),
     };
     format!("{} | {} | {:?} | {}", sc.source_name, f.controller.kind.as_str(), f.plant.kind, reference)
+}
+
+/// A run kept in memory (the Python package's `exoleg.run`): what `summary.json` holds, and
+/// the time series as columns named like `timeseries.csv`'s.
+#[derive(Debug, Clone)]
+pub struct MemoryRun {
+    /// `summary.json`'s content.
+    pub summary_json: serde_json::Value,
+    /// Column names, as in `timeseries.csv`'s header.
+    pub columns: Vec<&'static str>,
+    /// The values, row after row (`rows x columns.len()`).
+    pub values: Vec<f64>,
+}
+
+/// Run `sc` in memory: the same figures and columns as [`run_into`] writes, no files.
+pub fn run_to_memory(sc: &ResolvedScenario) -> Result<MemoryRun> {
+    let mut rec = crate::record::MemoryRecord::default();
+    let (summary, design) = crate::sim::run_with_design(&sc.model, &mut rec)?;
+    let criteria = check_criteria(&sc.file.criteria, &summary);
+    let file = SummaryFile {
+        summary: &summary,
+        criteria_results: &criteria,
+        criteria_passed: criteria.iter().all(|c| c.pass),
+        inputs: &sc.inputs,
+        controller_design: design,
+        scenario: &sc.file,
+    };
+    let summary_json =
+        serde_json::to_value(&file).map_err(|e| Error::Write { path: "summary".into(), message: e.to_string() })?;
+    let columns = rec.layout.names();
+    let mut values = Vec::with_capacity(rec.rows.len() * columns.len());
+    for r in &rec.rows {
+        r.values_into(&rec.layout, &mut values);
+    }
+    Ok(MemoryRun { summary_json, columns, values })
 }
 
 /// Run `sc`, writing `timeseries.csv`, `summary.json`, `force_tracking.png` and (gait)

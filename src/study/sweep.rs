@@ -206,6 +206,19 @@ impl Plan {
     }
 }
 
+/// The plan of `exoleg sweep`: a Monte-Carlo sample (`monte_carlo` runs of the `vary`
+/// distributions, seeded by the scenario's seed) or the full grid of `grids`.
+pub fn plan_from_args(base: &Scenario, grids: &[String], monte_carlo: Option<usize>, vary: &[String]) -> Result<Plan> {
+    if let Some(n) = monte_carlo {
+        let vary: Vec<(String, Dist)> = vary.iter().map(|v| parse_vary(v)).collect::<Result<_>>()?;
+        Plan::monte_carlo(base, n, &vary, base.file.seed)
+    } else if !grids.is_empty() {
+        Plan::grid(grids.iter().map(|g| parse_grid(g)).collect::<Result<_>>()?)
+    } else {
+        Err(Error::input("sweep", "", "give --grid key=v1,v2,... or --monte-carlo N --vary key=dist(...)"))
+    }
+}
+
 /// One run's line of `runs.jsonl`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunLine {
