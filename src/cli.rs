@@ -56,6 +56,9 @@ pub enum Command {
         /// Print nothing but errors.
         #[arg(long)]
         quiet: bool,
+        /// Also write leg_motion.gif: the leg in motion (leg plant only).
+        #[arg(long)]
+        animate: bool,
     },
     /// Run many variations of a scenario in parallel: a full grid or a Monte-Carlo sample.
     /// Writes DIR/runs.jsonl (one line per run) and DIR/aggregate.csv (min/median/max).
@@ -178,11 +181,21 @@ fn warn(warnings: &[String]) {
 }
 
 /// `exoleg run`.
-fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bool) -> Result<i32> {
+fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bool, animate: bool) -> Result<i32> {
     let sc = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
     warn(&sc.warnings);
+    if animate && sc.model.leg().is_none() {
+        return Err(Error::input(&sc.source_name, "--animate", "the animation draws the leg: plant.kind = \"leg\""));
+    }
     let dir = OutputDir::prepare(&out, "--out")?;
-    let report = study::run_into(&sc, dir.path(), &study::run_title(&sc), None)?;
+    let report = if animate {
+        let mut anim = output::animate::Animation::new(sc.model.steps as f64 * sc.model.dt_s);
+        let report = study::run_into(&sc, dir.path(), &study::run_title(&sc), Some(&mut anim))?;
+        study::write_animation(&sc, &anim, &dir.path().join("leg_motion.gif"))?;
+        report
+    } else {
+        study::run_into(&sc, dir.path(), &study::run_title(&sc), None)?
+    };
     dir.commit()?;
     if !quiet {
         print_summary(&sc, &report.summary, &out);
@@ -318,7 +331,7 @@ fn cmd_firmware(json: Option<PathBuf>, sets: Vec<String>) -> Result<i32> {
 /// Execute a parsed command line. Returns the process exit code on success.
 pub fn run(cli: Cli) -> Result<i32> {
     match cli.command {
-        Command::Run { scenario, out, sets, quiet } => cmd_run(scenario, out, sets, quiet),
+        Command::Run { scenario, out, sets, quiet, animate } => cmd_run(scenario, out, sets, quiet, animate),
         Command::Sweep { scenario, grids, monte_carlo, vary, out, run_outputs, common } => {
             cmd_sweep(scenario, grids, monte_carlo, vary, out, run_outputs, common)
         }

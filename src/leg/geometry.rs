@@ -357,3 +357,14 @@ pub fn foot_points_at(model: &LegSpec, hip_rad: f64, knee_rad: f64, ankle_rad: f
     }
     Some(FootPoints { ankle: poses[foot].t, lowest: lowest? })
 }
+
+/// Planar poses of every link (hip frame: hip at the origin, z up) for hip flexion, knee
+/// flexion and ankle dorsiflexion (rad; the ankle's only when it moves), indexed like
+/// [`LegSpec::links`]. None when the loop cannot close at `knee_rad`.
+pub fn link_poses_full_at(model: &LegSpec, hip_rad: f64, knee_rad: f64, ankle_rad: f64) -> Option<Vec<Pose2>> {
+    let mut q = model.joint_coords(&model.loop_solution(knee_rad)?);
+    if let Some(a) = model.ankle {
+        q[a] = ankle_rad;
+    }
+    Some(model.link_poses(&q).iter().map(|p| hip_rotated(hip_rad, p)).collect())
+}

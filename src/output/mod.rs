@@ -7,6 +7,7 @@
 //! fails, or is killed, leaves `--out` as it was. `--out` is checked before the simulation
 //! starts: a regular file, a link, or a folder that is not an exoleg output folder is refused.
 
+pub mod animate;
 mod csv;
 mod plot;
 pub use self::csv::*;

@@ -164,7 +164,7 @@ impl RecordSink for PlotBuffer {
 static FONT: Once = Once::new();
 
 /// Register the embedded DejaVu Sans font under the family name "sans-serif".
-fn ensure_font() {
+pub(super) fn ensure_font() {
     FONT.call_once(|| {
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
     });

@@ -121,3 +121,18 @@ pub fn run_into(
     }
     Ok(RunReport { summary, criteria })
 }
+
+/// Write `leg_motion.gif` of a leg run whose rows `anim` collected.
+pub fn write_animation(sc: &ResolvedScenario, anim: &crate::output::animate::Animation, path: &Path) -> Result<()> {
+    let Some(leg) = sc.model.leg() else { return Ok(()) };
+    let f = &sc.file;
+    let cuff = (f.human.mode == crate::human::HumanMode::Cuff)
+        .then(|| crate::plant::cuff_point_from_model(&leg.model, &f.human.cuff_link, f.human.cuff_xyz).ok())
+        .flatten();
+    let ground_z_m = match (&leg.ground, &leg.body) {
+        (Some(g), None) => Some(g.height_m),
+        _ => None,
+    };
+    let scene = crate::output::animate::Scene { model: &leg.model, cuff_m: cuff, ground_z_m };
+    crate::output::animate::write_gif(path, anim, &scene)
+}

@@ -2,6 +2,7 @@
 
 mod common;
 
+mod animate;
 mod architecture;
 mod bench_motion;
 mod cli;
