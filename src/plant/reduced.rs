@@ -18,6 +18,8 @@ pub struct ReducedLegPlant {
     length0_m: f64,
     length_m: f64,
     velocity_m_s: f64,
+    /// Measured piston acceleration over the last step (m/s^2).
+    accel_m_s2: f64,
     free_accel_m_s2: f64,
     free_accel_trend_m_s2: f64,
     /// Distance of the cuff point from the knee axis (m).
@@ -45,6 +47,7 @@ impl ReducedLegPlant {
             length0_m: l,
             length_m: l,
             velocity_m_s: arm * qd,
+            accel_m_s2: free,
             free_accel_m_s2: free,
             free_accel_trend_m_s2: 0.0,
             cuff_radius_m: (cuff[0] * cuff[0] + cuff[2] * cuff[2]).sqrt(),
@@ -68,7 +71,7 @@ impl Plant for ReducedLegPlant {
         PistonMotion {
             position_m: self.length_m - self.length0_m,
             velocity_m_s: self.velocity_m_s,
-            accel_m_s2: self.free_accel_m_s2,
+            accel_m_s2: self.accel_m_s2,
         }
     }
 
@@ -112,6 +115,7 @@ impl Plant for ReducedLegPlant {
         let (l1, arm1) = m.cylinder(self.q);
         let v = arm1 * self.qd;
         let accel = (v - self.velocity_m_s) / dt_s;
+        self.accel_m_s2 = accel;
         let free = accel - force / m.effective_mass_kg(q0);
         self.free_accel_trend_m_s2 = free - self.free_accel_m_s2;
         self.free_accel_m_s2 = free;
