@@ -125,3 +125,12 @@ def test_threads_run_together_and_agree():
     for t in ts:
         t.join()
     assert np.array_equal(results[0].timeseries["load_force_n"], results[1].timeseries["load_force_n"])
+
+
+def test_compare_gives_the_papers_eight_cases():
+    cases = exoleg.compare(overrides={"plant.kind": "bench"})
+    assert len(cases) == 8
+    c = cases[0]
+    # Measured: 9.247 N against the paper's 9.24 N (+0.08 %).
+    assert c["case"]["controller"] == "arbfnn_fdo_znn" and c["case"]["paper_max_error_n"] == 9.24
+    assert abs(c["max_abs_force_error_n"] - 9.24) / 9.24 < 0.005
