@@ -71,6 +71,22 @@ fn shards_merge_into_the_unsharded_sweep_byte_for_byte() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert_eq!(text.lines().count(), 12);
     assert!(text.lines().next().unwrap().starts_with("{\"index\":0,\"sets\":[\"hydraulics.beta_pa="), "{text}");
+    // Hostile shard files: garbage, an absurd shard count, a multibyte hash.
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(t.join("s1/shard.json")).unwrap()).unwrap();
+    let (mut huge, mut accented) = (meta.clone(), meta.clone());
+    huge["shard"] = serde_json::json!([1, 1_000_000_000_000u64]);
+    accented["plan_hash"] = serde_json::json!("éé");
+    for (i, text) in ["not json".to_string(), huge.to_string(), accented.to_string()].iter().enumerate() {
+        let d = t.join(format!("h{i}"));
+        std::fs::create_dir_all(&d).unwrap();
+        std::fs::copy(t.join("s1/runs.jsonl"), d.join("runs.jsonl")).unwrap();
+        std::fs::write(d.join("shard.json"), text).unwrap();
+        let o = exoleg(&["merge", "s0", d.to_str().unwrap(), "s2", "--out", "bad"], t);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "case {i}: {err}");
+        assert!(err.contains("shard.json") || err.contains("shard"), "case {i}: {err}");
+    }
     for bad in ["3/3", "1", "a/2", "0/0"] {
         let o = exoleg(&sweep_args(sc, &["--shard", bad, "--out", "x"]), t);
         assert_eq!(o.status.code(), Some(2), "--shard {bad}");
