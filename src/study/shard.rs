@@ -119,7 +119,13 @@ fn short(h: &str) -> String {
 fn read_meta(dir: &Path) -> Result<ShardMeta> {
     let p = dir.join("shard.json");
     let text = crate::scenario::read_capped(&p, 64 << 20)?;
-    let meta: ShardMeta = serde_json::from_str(&text)
+    parse_meta(&p.display().to_string(), &text)
+}
+
+/// Parse and check `shard.json` text (`name` for messages). The fuzz target's entry point.
+pub fn parse_meta(name: &str, text: &str) -> Result<ShardMeta> {
+    let p = std::path::PathBuf::from(name);
+    let meta: ShardMeta = serde_json::from_str(text)
         .map_err(|e| Error::input(p.display().to_string(), "shard.json", format!("not a shard: {e}")))?;
     if meta.format != SHARD_FORMAT {
         return Err(Error::input(
@@ -127,6 +133,18 @@ fn read_meta(dir: &Path) -> Result<ShardMeta> {
             "format",
             format!("expected {SHARD_FORMAT}, got {}", meta.format),
         ));
+    }
+    let max = super::sweep::MAX_RUNS;
+    let [k, n] = meta.shard;
+    if n == 0 || n > max || k >= n || meta.runs > max {
+        return Err(Error::input(
+            p.display().to_string(),
+            "shard",
+            format!("shard {k}/{n} of {} runs: needs K < N <= {max} and at most {max} runs", meta.runs),
+        ));
+    }
+    if meta.plan_hash.len() != 64 || !meta.plan_hash.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(Error::input(p.display().to_string(), "plan_hash", "not a SHA-256 (64 hex digits)"));
     }
     Ok(meta)
 }

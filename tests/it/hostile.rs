@@ -79,6 +79,12 @@ fn urdf_with_a_huge_fixed_chain_is_refused_at_once() {
 }
 
 #[test]
+fn shard_json_corpus() {
+    let (ok, refused) = replay("shard_json", exoleg::scenario::fuzz_shard_json);
+    assert!(refused >= 7 && ok >= 1, "{ok} accepted, {refused} refused");
+}
+
+#[test]
 fn set_flag_corpus() {
     let (ok, refused) = replay("set_flag", exoleg::scenario::fuzz_set_flags);
     assert!(refused >= 12 && ok >= 3, "{ok} accepted, {refused} refused");

@@ -82,7 +82,7 @@ fn shards_merge_into_the_unsharded_sweep_byte_for_byte() {
         std::fs::create_dir_all(&d).unwrap();
         std::fs::copy(t.join("s1/runs.jsonl"), d.join("runs.jsonl")).unwrap();
         std::fs::write(d.join("shard.json"), text).unwrap();
-        let o = exoleg(&["merge", "s0", d.to_str().unwrap(), "s2", "--out", "bad"], t);
+        let o = exoleg(&["merge", d.to_str().unwrap(), "s0", "s2", "--out", "bad"], t);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "case {i}: {err}");
         assert!(err.contains("shard.json") || err.contains("shard"), "case {i}: {err}");
