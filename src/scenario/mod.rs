@@ -369,11 +369,6 @@ pub mod fuzz {
         crate::reference::GaitCycle::parse("fuzz.csv", text, 12).map(|_| ())
     }
 
-    /// A shard's `shard.json` (`exoleg merge`): parse and check.
-    pub fn shard_json(text: &str) -> Result<()> {
-        crate::study::shard::parse_meta("fuzz/shard.json", text).map(|_| ())
-    }
-
     /// `--set` flags, one per line, on the embedded default scenario, resolved.
     pub fn set_flags(text: &str) -> Result<()> {
         let sets: Vec<String> = text.lines().map(str::to_string).collect();
@@ -381,7 +376,4 @@ pub mod fuzz {
     }
 }
 
-pub use fuzz::{
-    gait_csv as fuzz_gait_csv, scenario as fuzz_scenario, set_flags as fuzz_set_flags, shard_json as fuzz_shard_json,
-    urdf as fuzz_urdf,
-};
+pub use fuzz::{gait_csv as fuzz_gait_csv, scenario as fuzz_scenario, set_flags as fuzz_set_flags, urdf as fuzz_urdf};

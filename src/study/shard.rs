@@ -149,6 +149,12 @@ pub fn parse_meta(name: &str, text: &str) -> Result<ShardMeta> {
     Ok(meta)
 }
 
+/// A shard's `shard.json` text through the merge's reader: the fuzz target's and the
+/// hostile corpus's entry point (`shard_json`).
+pub fn fuzz_shard_json(text: &str) -> Result<()> {
+    parse_meta("fuzz/shard.json", text).map(|_| ())
+}
+
 /// Check that the shard folders are the N shards of one plan, each once; returns their metas
 /// ordered by K.
 fn check_shards(dirs: &[PathBuf]) -> Result<Vec<ShardMeta>> {

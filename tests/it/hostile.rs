@@ -80,7 +80,7 @@ fn urdf_with_a_huge_fixed_chain_is_refused_at_once() {
 
 #[test]
 fn shard_json_corpus() {
-    let (ok, refused) = replay("shard_json", exoleg::scenario::fuzz_shard_json);
+    let (ok, refused) = replay("shard_json", exoleg::study::shard::fuzz_shard_json);
     assert!(refused >= 7 && ok >= 1, "{ok} accepted, {refused} refused");
 }
 
