@@ -326,11 +326,7 @@ pub struct FootPoints {
 pub fn foot_points_at(model: &LegSpec, hip_rad: f64, knee_rad: f64, ankle_rad: f64) -> Option<FootPoints> {
     use super::model::CollisionShape as S;
     use super::planar::P2;
-    let mut q = model.joint_coords(&model.loop_solution(knee_rad)?);
-    if let Some(a) = model.ankle {
-        q[a] = ankle_rad;
-    }
-    let poses: Vec<Pose2> = model.link_poses(&q).iter().map(|p| hip_rotated(hip_rad, p)).collect();
+    let poses = link_poses_full_at(model, hip_rad, knee_rad, ankle_rad)?;
     let foot = model.ankle.map_or_else(|| model.joints[model.knee].child, |a| model.joints[a].child);
     let mut lowest: Option<P2> = None;
     for c in &model.collisions {

@@ -202,22 +202,26 @@ impl Metric {
 
 /// Running RMS: the sum of squares in row order, then `sqrt(sum / n)`.
 #[derive(Debug, Clone, Copy, Default)]
-struct Rms {
+pub(crate) struct Rms {
     sum_sq: f64,
     n: usize,
 }
 
 impl Rms {
-    fn add(&mut self, x: f64) {
+    pub(crate) fn add(&mut self, x: f64) {
         self.sum_sq += x * x;
         self.n += 1;
     }
-    fn value(&self) -> f64 {
+    pub(crate) fn value(&self) -> f64 {
         if self.n == 0 {
             0.0
         } else {
             (self.sum_sq / self.n as f64).sqrt()
         }
+    }
+    /// The RMS, or None before the first value.
+    pub(crate) fn value_if_any(&self) -> Option<f64> {
+        (self.n > 0).then(|| self.value())
     }
 }
 

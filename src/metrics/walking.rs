@@ -11,6 +11,7 @@
 //! - The stance knee moment is compared over 0-61 % (the data's stance); the extensor peak is
 //!   the largest moment in 5-25 %, the flexor peak the smallest in 25-61 %.
 
+use super::Rms;
 use crate::error::Result;
 use crate::record::{Layout, RecordSink, Row};
 use crate::reference::WalkingData;
@@ -74,22 +75,6 @@ pub struct ContactSummary {
     pub dataset: Option<DatasetComparison>,
 }
 
-#[derive(Debug, Clone, Copy, Default)]
-struct Rms {
-    sum: f64,
-    n: usize,
-}
-
-impl Rms {
-    fn add(&mut self, v: f64) {
-        self.sum += v * v;
-        self.n += 1;
-    }
-    fn value(&self) -> Option<f64> {
-        (self.n > 0).then(|| (self.sum / self.n as f64).sqrt())
-    }
-}
-
 /// Accumulates the contact figures row by row.
 #[derive(Debug, Clone)]
 pub struct WalkingMetrics {
@@ -137,10 +122,10 @@ impl WalkingMetrics {
             peak_ground_reaction_n: self.peak_grf,
             stance_fraction: frac,
             max_contact_penetration_m: self.max_pen,
-            knee_rms_error_stance_deg: self.knee[0].value(),
-            knee_rms_error_swing_deg: self.knee[1].value(),
-            force_rms_error_stance_n: self.force[0].value(),
-            force_rms_error_swing_n: self.force[1].value(),
+            knee_rms_error_stance_deg: self.knee[0].value_if_any(),
+            knee_rms_error_swing_deg: self.knee[1].value_if_any(),
+            force_rms_error_stance_n: self.force[0].value_if_any(),
+            force_rms_error_swing_n: self.force[1].value_if_any(),
             dataset: self.compare(),
         }
     }

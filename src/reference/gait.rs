@@ -309,6 +309,12 @@ impl GaitReference {
         (v, d1 * k, d2 * k * k, d3 * k * k * k)
     }
 
+    /// Ankle dorsiflexion (rad) and its time derivatives at `t_s` (zero if the file has no
+    /// ankle column).
+    pub fn ankle_at(&self, t_s: f64) -> RefSample {
+        self.cycle.ankle.as_ref().map_or(RefSample::default(), |a| self.sample(a, t_s))
+    }
+
     /// Hip flexion (rad) and its time derivatives at `t_s` (zero if the file has no hip column).
     pub fn hip_at(&self, t_s: f64) -> RefSample {
         self.cycle.hip.as_ref().map_or(RefSample::default(), |h| self.sample(h, t_s))

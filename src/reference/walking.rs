@@ -112,7 +112,7 @@ impl WalkingData {
         };
         let depth = |pct: f64| -> Result<(f64, f64), String> {
             let t = pct / 100.0 * w.gait.stride_s;
-            let (h, k, a) = (w.thigh_at(t).value, w.gait.knee_at(t).value, w.angle_ankle(t).value);
+            let (h, k, a) = (w.thigh_at(t).value, w.gait.knee_at(t).value, w.gait.ankle_at(t).value);
             let p = foot_points_at(model, h, k, a)
                 .ok_or_else(|| format!("the leg cannot take the data's pose at {pct:.1} % (loop or soles)"))?;
             Ok((-p.lowest.z, p.ankle.x))
@@ -148,14 +148,6 @@ impl WalkingData {
         h
     }
 
-    fn angle_ankle(&self, t_s: f64) -> RefSample {
-        let k = 100.0 / self.gait.stride_s;
-        self.gait.cycle.ankle.as_ref().map_or(RefSample::default(), |s| {
-            let (v, d1, d2) = s.eval(t_s * k);
-            RefSample { value: v, rate: d1 * k, accel: d2 * k * k }
-        })
-    }
-
     /// Cycle percentage at `t_s` (0..100).
     pub fn pct_at(&self, t_s: f64) -> f64 {
         (t_s / self.gait.stride_s * 100.0).rem_euclid(100.0)
@@ -187,7 +179,7 @@ impl WalkingData {
         WalkingSample {
             hip: self.thigh_at(t_s),
             knee: self.gait.knee_at(t_s),
-            ankle: self.angle_ankle(t_s),
+            ankle: self.gait.ankle_at(t_s),
             hip_moment_nm: self.hip_moment.at(pct) * m,
             knee_moment_nm: self.knee_moment.at(pct) * m,
             ankle_moment_nm: self.ankle_moment.at(pct) * m,
