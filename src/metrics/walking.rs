@@ -56,8 +56,11 @@ pub struct DatasetComparison {
 /// The contact figures of a run (summary keys, present with ground contact).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ContactSummary {
-    /// Largest vertical ground reaction after the run-in (N; the first landing is in the
-    /// run-in).
+    /// Largest vertical ground reaction in one step after the run-in (N; the first landing
+    /// is in the run-in). Unfiltered: it includes each heel strike's impact, which the rigid
+    /// sole (no heel pad, no shoe) delivers within a step or two, so on a treadmill it is tens
+    /// of kN at 0.25 ms steps (the impulse, not the force, is the physical quantity there).
+    /// The dataset comparison's `grf_peak_ratio` uses the 10 Hz low-passed cycle instead.
     pub peak_ground_reaction_n: f64,
     /// Fraction of the time after the run-in in stance.
     pub stance_fraction: f64,
