@@ -46,12 +46,13 @@ pub struct HipParams {
     /// leans forward in walking; the carriage's pelvis stays upright, so the thigh follows
     /// the hip flexion minus this. Default 10 (typical in adult walking). -30..=45.
     pub pelvic_tilt_deg: f64,
-    /// Hip spring about the data's angle (N m/rad). Default 500: compliant, like a walking
-    /// hip (about 7 N m/rad per kg of a 75 kg subject). A stiffly held hip fixes the pelvis's
-    /// path over the foot, so the foot is dragged against the belt and the stance knee moment
-    /// loses its shape (3000 N m/rad, 100 N m s/rad: correlation with the data -0.06). >= 0.
+    /// Hip spring about the data's angle (N m/rad). Default 500 (about 7 N m/rad per kg of a
+    /// 75 kg subject): compliant. A stiffly held hip fixes the pelvis's path over the foot, so
+    /// the foot is dragged against the belt and the stance knee moment loses its shape (on
+    /// `gait_treadmill.toml`, 3000 N m/rad with 100 N m s/rad: correlation with the data
+    /// -0.43 instead of 0.79). >= 0.
     pub stiffness_nm_per_rad: f64,
-    /// Hip damper (N m s/rad). Default 30 (100 already drags the foot: correlation 0.28). >= 0.
+    /// Hip damper (N m s/rad). Default 30 (100 already drags the foot: correlation 0.40). >= 0.
     pub damping_nm_s_per_rad: f64,
     /// Share of the data's hip moment applied across the hip (0..=1). Default 1.
     pub moment_share: f64,

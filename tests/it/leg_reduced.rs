@@ -54,7 +54,6 @@ fn passive_release_matches_the_reference_and_rapier() {
         }
         d_fine = d_fine.max((fine.knee_angle_rad() - q_red).abs());
     }
-
     // Measured over 5 s: reduced vs the independent reference 1.07e-5 deg; Rapier at 1 ms vs
     // the reference 0.0392 deg and vs the reduced engine 0.0392 deg (Rapier's own first-order
     // error); Rapier at 0.1 ms vs the reduced engine 0.0039 deg.

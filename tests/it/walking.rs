@@ -84,8 +84,9 @@ fn loaded_walking_reproduces_the_stance_and_ground_reaction_of_the_data() {
 #[test]
 fn the_papers_observer_cannot_take_the_loaded_leg() {
     // ARBFNN-FDO-ZNN on the treadmill: the piston acceleration the controller reads is
-    // predicted from the last step, and loaded it misses by m/s^2 (~1e7 N/s^2 in the load
-    // force's second derivative); the FDO's cubic term then needs nanosecond steps. Substepped,
+    // predicted from the last step (the first from the hanging leg's model), and loaded the
+    // load force's second derivative departs far from the observer's model; the FDO's cubic
+    // term then needs nanosecond steps. Substepped,
     // the run stops in its first step (measured: 1.4 ns needed) and names the observer; at the
     // fixed step it diverges.
     let s = shipped(
