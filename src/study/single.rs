@@ -27,6 +27,25 @@ pub struct SummaryFile<'a> {
     pub scenario: &'a ScenarioFile,
 }
 
+impl<'a> SummaryFile<'a> {
+    /// The summary of a run of `sc`: its figures, its criteria checked, what it read.
+    pub fn new(
+        sc: &'a ResolvedScenario,
+        summary: &'a Summary,
+        criteria: &'a [CriterionResult],
+        controller_design: Option<serde_json::Value>,
+    ) -> Self {
+        Self {
+            summary,
+            criteria_results: criteria,
+            criteria_passed: criteria.iter().all(|c| c.pass),
+            inputs: &sc.inputs,
+            controller_design,
+            scenario: &sc.file,
+        }
+    }
+}
+
 /// The outcome of a run written to a folder.
 #[derive(Debug, Clone)]
 pub struct RunReport {
@@ -71,14 +90,7 @@ pub fn run_to_memory(sc: &ResolvedScenario) -> Result<MemoryRun> {
     let mut rec = crate::record::MemoryRecord::default();
     let (summary, design) = crate::sim::run_with_design(&sc.model, &mut rec)?;
     let criteria = check_criteria(&sc.file.criteria, &summary);
-    let file = SummaryFile {
-        summary: &summary,
-        criteria_results: &criteria,
-        criteria_passed: criteria.iter().all(|c| c.pass),
-        inputs: &sc.inputs,
-        controller_design: design,
-        scenario: &sc.file,
-    };
+    let file = SummaryFile::new(sc, &summary, &criteria, design);
     let summary_json =
         serde_json::to_value(&file).map_err(|e| Error::Write { path: "summary".into(), message: e.to_string() })?;
     let columns = rec.layout.names();
@@ -106,14 +118,7 @@ pub fn run_into(
     let (summary, design) = crate::sim::run_with_design(&sc.model, &mut Tee(sinks))?;
     csv.finish()?;
     let criteria = check_criteria(&sc.file.criteria, &summary);
-    let file = SummaryFile {
-        summary: &summary,
-        criteria_results: &criteria,
-        criteria_passed: criteria.iter().all(|c| c.pass),
-        inputs: &sc.inputs,
-        controller_design: design,
-        scenario: &sc.file,
-    };
+    let file = SummaryFile::new(sc, &summary, &criteria, design);
     write_json(&dir.join("summary.json"), &file)?;
     force_tracking_png(&dir.join("force_tracking.png"), &plots, title)?;
     if plots.has_knee() {
