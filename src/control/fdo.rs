@@ -69,11 +69,35 @@ impl Fdo {
         Self { p }
     }
 
+    /// The paper's exponent r = 1/3 (the default), where the powers are a cube root and
+    /// products: `a^r = cbrt(a)`, `a^(1/r) = a^3`, `a^(1/r-1) = a^2`, `a^(r-1) = cbrt(a)/a`.
+    fn is_one_third(&self) -> bool {
+        self.p.exponent == 1.0 / 3.0
+    }
+
+    /// `(|Xi|^r, |Xi|^(1/r))`.
+    fn powers(&self, a: f64) -> (f64, f64) {
+        if self.is_one_third() {
+            (a.cbrt(), a * a * a)
+        } else {
+            let r = self.p.exponent;
+            (a.powf(r), a.powf(1.0 / r))
+        }
+    }
+
+    /// `|Xi|^(1/r-1)`.
+    fn outer_slope_power(&self, a: f64) -> f64 {
+        if self.is_one_third() {
+            a * a
+        } else {
+            a.powf(1.0 / self.p.exponent - 1.0)
+        }
+    }
+
     /// psi(Xi).
     pub fn psi(&self, xi: f64) -> f64 {
-        let r = self.p.exponent;
-        let a = xi.abs();
-        xi + a.powf(r).copysign(xi) + a.powf(1.0 / r).copysign(xi) + (2.0 / (1.0 + (-xi).exp()) - 1.0)
+        let (inner, outer) = self.powers(xi.abs());
+        xi + inner.copysign(xi) + outer.copysign(xi) + (2.0 / (1.0 + (-xi).exp()) - 1.0)
     }
 
     /// d(L*psi)/dXi, for implicit updates.
@@ -82,17 +106,17 @@ impl Fdo {
         let a = xi.abs().max(1e-300);
         let e = (-xi).exp();
         let sig = if e.is_finite() { 2.0 * e / ((1.0 + e) * (1.0 + e)) } else { 0.0 };
-        self.p.gain * (1.0 + r * a.powf(r - 1.0) + a.powf(1.0 / r - 1.0) / r + sig)
+        let inner = if self.is_one_third() { a.cbrt() / a } else { a.powf(r - 1.0) };
+        self.p.gain * (1.0 + r * inner + self.outer_slope_power(a) / r + sig)
     }
 
     /// d(L*psi)/dXi without the `sig(Xi)^r` term (whose slope is unbounded at 0): the rate
     /// that limits an explicit integrator's step.
     pub fn lipschitz_slope(&self, xi: f64) -> f64 {
         let r = self.p.exponent;
-        let a = xi.abs();
         let e = (-xi).exp();
         let sig = if e.is_finite() { 2.0 * e / ((1.0 + e) * (1.0 + e)) } else { 0.0 };
-        self.p.gain * (1.0 + a.powf(1.0 / r - 1.0) / r + sig)
+        self.p.gain * (1.0 + self.outer_slope_power(xi.abs()) / r + sig)
     }
 
     /// D_hat = L*psi(Xi) (N/s^2).
@@ -118,5 +142,26 @@ mod tests {
         }
         // At 150 the cubic term gives 3 L xi^2 = 168,750.
         assert!((f.estimate_slope(150.0) / 168_750.0 - 1.0).abs() < 1e-3);
+    }
+
+    /// The cube-root path of r = 1/3 gives the general powers' values (to rounding), and
+    /// another exponent takes the general path.
+    #[test]
+    fn one_third_matches_the_general_powers() {
+        let f = Fdo::new(ObserverParams::default());
+        let r = 1.0 / 3.0;
+        for xi in [-40.0, -3.0, -0.2, 1e-9, 0.05, 0.7, 12.0, 150.0] {
+            let a: f64 = f64::abs(xi);
+            let general =
+                xi + a.powf(r).copysign(xi) + a.powf(1.0 / r).copysign(xi) + (2.0 / (1.0 + (-xi).exp()) - 1.0);
+            assert!((f.psi(xi) - general).abs() <= 1e-14 * general.abs().max(1.0), "xi {xi}");
+            let slope = 1.0 + r * a.powf(r - 1.0) + a.powf(1.0 / r - 1.0) / r;
+            let sig = 2.0 * (-xi).exp() / ((1.0 + (-xi).exp()) * (1.0 + (-xi).exp()));
+            assert!((f.estimate_slope(xi) - slope - sig).abs() <= 1e-13 * slope, "xi {xi}");
+        }
+        // r = 1/2: psi(4) = 4 + 2 + 16 + sigmoid(4).
+        let half = Fdo::new(ObserverParams { exponent: 0.5, ..Default::default() });
+        let sigmoid = 2.0 / (1.0 + (-4.0f64).exp()) - 1.0;
+        assert!((half.psi(4.0) - (22.0 + sigmoid)).abs() < 1e-12);
     }
 }

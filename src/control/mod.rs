@@ -91,6 +91,22 @@ pub trait Controller: Send + Sync {
     fn output(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64]) -> ControlOutput;
     /// Time derivative of the internal state (pure). `u` is the output just computed.
     fn derivatives(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]);
+    /// [`Self::output`] clipped by `limit`, then [`Self::derivatives`] with it: one integrator
+    /// stage. A controller whose output and derivatives share terms computes them once here;
+    /// the result must equal the two calls'.
+    fn output_and_derivatives(
+        &self,
+        t_s: f64,
+        r: &RefSample,
+        y: &Measurement,
+        s: &[f64],
+        limit: ValveLimit,
+        ds: &mut [f64],
+    ) -> ControlOutput {
+        let o = limit.apply(self.output(t_s, r, y, s));
+        self.derivatives(t_s, r, y, s, &o, ds);
+        o
+    }
     /// Largest local rate (1/s) of the internal state's own dynamics at force rate
     /// `force_rate_n_per_s` (N/s): the loop substeps the continuous controller when it would
     /// outrun the integrator. Default 0 (not stiff).

@@ -1,6 +1,6 @@
 //! ZNN force controller (paper Eq. 7-15), optionally with ARBFNN + FDO (paper Eq. 30).
 
-use super::{ControlOutput, Controller, Fdo, Measurement, NominalModel, RbfNetwork, RBF_NODES};
+use super::{ControlOutput, Controller, Fdo, Measurement, NominalModel, RbfNetwork, ValveLimit, RBF_NODES};
 use crate::reference::RefSample;
 
 /// ZNN with linear activation. With `compensation = Some(..)` it is ARBFNN-FDO-ZNN.
@@ -37,6 +37,47 @@ impl Znn {
         let e1_dot = y.force_rate_n_per_s - r.rate;
         [y.force_n, y.force_rate_n_per_s, e1, e1_dot]
     }
+
+    /// The output, and with compensation the terms its state derivatives share with it.
+    fn output_with(&self, r: &RefSample, y: &Measurement, s: &[f64]) -> (ControlOutput, Option<Shared>) {
+        let (comp, g_hat, shared) = match &self.compensation {
+            None => (0.0, 0.0, None),
+            Some((rbf, fdo)) => {
+                let h = rbf.activations(&Self::rbf_input(r, y));
+                let g_hat = rbf.output(&h, &s[1..=RBF_NODES]);
+                let xi = y.force_rate_n_per_s - s[0];
+                let estimate = fdo.estimate(xi);
+                (g_hat + estimate, g_hat, Some(Shared { h, xi, estimate }))
+            }
+        };
+        let u = self.model.invert(self.desired_accel(r, y) - comp, y);
+        let o = ControlOutput {
+            saturated: false,
+            valve_command: u,
+            disturbance_estimate_n_per_s2: comp,
+            rbf_output_n_per_s2: g_hat,
+        };
+        (o, shared)
+    }
+
+    /// The observer's and the weights' rates for output `u`.
+    fn compensation_rates(&self, rbf: &RbfNetwork, y: &Measurement, u: &ControlOutput, sh: &Shared, ds: &mut [f64]) {
+        // dz/dt = [n1*dx3/dt - n3*x2 - n2*xc_ddot + g_hat] + L*psi(Xi)   (paper Eq. 27)
+        ds[0] = self.model.force_accel(u.valve_command, y) + u.rbf_output_n_per_s2 + sh.estimate;
+        if u.saturated {
+            ds[1..=RBF_NODES].fill(0.0);
+        } else {
+            rbf.weight_rates(&sh.h, sh.xi, &mut ds[1..=RBF_NODES]);
+        }
+    }
+}
+
+/// What the output and the state derivatives of ARBFNN-FDO-ZNN share at one stage: the RBF
+/// activations, the observer's Xi = x2 - z (N/s) and its estimate L*psi(Xi) (N/s^2).
+struct Shared {
+    h: [f64; RBF_NODES],
+    xi: f64,
+    estimate: f64,
 }
 
 impl Controller for Znn {
@@ -75,22 +116,24 @@ impl Controller for Znn {
     }
 
     fn output(&self, _t_s: f64, r: &RefSample, y: &Measurement, s: &[f64]) -> ControlOutput {
-        let (comp, g_hat) = match &self.compensation {
-            None => (0.0, 0.0),
-            Some((rbf, fdo)) => {
-                let h = rbf.activations(&Self::rbf_input(r, y));
-                let g_hat = rbf.output(&h, &s[1..=RBF_NODES]);
-                let xi = y.force_rate_n_per_s - s[0];
-                (g_hat + fdo.estimate(xi), g_hat)
-            }
-        };
-        let u = self.model.invert(self.desired_accel(r, y) - comp, y);
-        ControlOutput {
-            saturated: false,
-            valve_command: u,
-            disturbance_estimate_n_per_s2: comp,
-            rbf_output_n_per_s2: g_hat,
+        self.output_with(r, y, s).0
+    }
+
+    fn output_and_derivatives(
+        &self,
+        _t_s: f64,
+        r: &RefSample,
+        y: &Measurement,
+        s: &[f64],
+        limit: ValveLimit,
+        ds: &mut [f64],
+    ) -> ControlOutput {
+        let (o, shared) = self.output_with(r, y, s);
+        let o = limit.apply(o);
+        if let (Some((rbf, _)), Some(sh)) = (&self.compensation, shared) {
+            self.compensation_rates(rbf, y, &o, &sh, ds);
         }
+        o
     }
 
     /// The observer's `dz/dt` falls with z at `L dpsi/dXi`: its linear, cubic and sigmoid
@@ -102,14 +145,8 @@ impl Controller for Znn {
     fn derivatives(&self, _t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]) {
         if let Some((rbf, fdo)) = &self.compensation {
             let xi = y.force_rate_n_per_s - s[0];
-            // dz/dt = [n1*dx3/dt - n3*x2 - n2*xc_ddot + g_hat] + L*psi(Xi)   (paper Eq. 27)
-            ds[0] = self.model.force_accel(u.valve_command, y) + u.rbf_output_n_per_s2 + fdo.estimate(xi);
-            if u.saturated {
-                ds[1..=RBF_NODES].fill(0.0);
-            } else {
-                let h = rbf.activations(&Self::rbf_input(r, y));
-                rbf.weight_rates(&h, xi, &mut ds[1..=RBF_NODES]);
-            }
+            let sh = Shared { h: rbf.activations(&Self::rbf_input(r, y)), xi, estimate: fdo.estimate(xi) };
+            self.compensation_rates(rbf, y, u, &sh, ds);
         }
     }
 

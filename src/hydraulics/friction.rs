@@ -46,12 +46,19 @@ impl FrictionParams {
 
     /// d F_f / d v (N s/m), analytic.
     pub fn slope_n_s_per_m(&self, v_m_s: f64) -> f64 {
+        self.force_and_slope(v_m_s).1
+    }
+
+    /// [`Self::force_n`] (N) and [`Self::slope_n_s_per_m`] (N s/m) with one `exp` and one
+    /// `tanh` (the same numbers as the two calls).
+    pub fn force_and_slope(&self, v_m_s: f64) -> (f64, f64) {
         let (vs, eps) = (self.stribeck_velocity_m_s, self.smoothing_velocity_m_s);
         let e = (-(v_m_s / vs).powi(2)).exp();
         let level = self.coulomb_n + (self.static_n - self.coulomb_n) * e;
         let dlevel = (self.static_n - self.coulomb_n) * e * (-2.0 * v_m_s / (vs * vs));
         let th = (v_m_s / eps).tanh();
-        dlevel * th + level * (1.0 - th * th) / eps + self.viscous_n_s_per_m
+        let force = level * th + self.viscous_n_s_per_m * v_m_s;
+        (force, dlevel * th + level * (1.0 - th * th) / eps + self.viscous_n_s_per_m)
     }
 }
 

@@ -108,6 +108,19 @@ pub struct Leg {
     lab: Option<SegmentMomenta>,
     /// The gait-lab knee moment over the last step (N m, extensor positive).
     lab_knee_moment_nm: f64,
+    /// The cylinder's pins where the bodies are now.
+    pins: Pins,
+}
+
+/// World positions (m) of the cylinder's pins, computed once whenever the bodies move.
+#[derive(Clone, Copy, Debug, Default)]
+struct Pins {
+    /// The rod-side closure anchor.
+    rod_end: DVec3,
+    /// The other closure anchor (on the shank side).
+    other_anchor: DVec3,
+    /// The barrel's pivot on the thigh.
+    barrel_pivot: DVec3,
 }
 
 /// Linear momentum (kg m/s) and angular momentum about the world origin (kg m^2/s) of the
@@ -689,7 +702,9 @@ impl Leg {
             contact: ContactReading::default(),
             lab: None,
             lab_knee_moment_nm: 0.0,
+            pins: Pins::default(),
         };
+        leg.pins = leg.pins_now();
         if leg.ground.is_some() {
             leg.lab = Some(leg.segment_momenta());
         }
@@ -748,6 +763,7 @@ impl Leg {
         self.world.integration_parameters.dt = 0.0;
         self.world.step();
         self.world.integration_parameters.dt = self.dt;
+        self.pins = self.pins_now();
         if self.ground.is_some() {
             self.lab = Some(self.segment_momenta());
         }
@@ -863,22 +879,18 @@ impl Leg {
         self.world.bodies[self.link_body[link]].position() * (self.link_offset[link] * local)
     }
 
-    fn rod_end_world(&self) -> DVec3 {
+    /// The pins' world positions from the bodies' poses.
+    fn pins_now(&self) -> Pins {
         let c = &self.model.closure;
-        if self.rod_anchor_is_1 {
-            self.world_point(c.link1, self.anchor1)
-        } else {
-            self.world_point(c.link2, self.anchor2)
-        }
-    }
-
-    fn barrel_pivot_world(&self) -> DVec3 {
-        self.world_point(self.model.joints[self.model.barrel].child, DVec3::ZERO)
+        let (p1, p2) = (self.world_point(c.link1, self.anchor1), self.world_point(c.link2, self.anchor2));
+        let (rod_end, other_anchor) = if self.rod_anchor_is_1 { (p1, p2) } else { (p2, p1) };
+        let barrel_pivot = self.world_point(self.model.joints[self.model.barrel].child, DVec3::ZERO);
+        Pins { rod_end, other_anchor, barrel_pivot }
     }
 
     /// Measured pin-to-pin cylinder length (barrel pivot to the rod-side closure anchor), m.
     pub fn cylinder_length_m(&self) -> f64 {
-        (self.rod_end_world() - self.barrel_pivot_world()).length()
+        (self.pins.rod_end - self.pins.barrel_pivot).length()
     }
     /// Cylinder length change over the last step divided by dt, m/s (geometric, so it is
     /// consistent with the positions after the constraint solver's corrections).
@@ -891,8 +903,9 @@ impl Leg {
     }
     /// Distance between the two loop-closure anchor points in world, m.
     pub fn loop_gap_m(&self) -> f64 {
-        let c = &self.model.closure;
-        (self.world_point(c.link1, self.anchor1) - self.world_point(c.link2, self.anchor2)).length()
+        let p = &self.pins;
+        let (p1, p2) = if self.rod_anchor_is_1 { (p.rod_end, p.other_anchor) } else { (p.other_anchor, p.rod_end) };
+        (p1 - p2).length()
     }
 
     /// World pose of a link (by index into `LegSpec::links`).
@@ -924,8 +937,7 @@ impl Leg {
             rb.reset_torques(false);
         }
         if actuator_force_n != 0.0 {
-            let pr = self.rod_end_world();
-            let pb = self.barrel_pivot_world();
+            let (pr, pb) = (self.pins.rod_end, self.pins.barrel_pivot);
             let u = (pr - pb).normalize_or_zero();
             let f = u * actuator_force_n;
             let rod_body = if self.rod_anchor_is_1 { self.model.closure.link1 } else { self.model.closure.link2 };
@@ -948,6 +960,7 @@ impl Leg {
             Some(belt) => self.world.step_with_events(belt, &()),
             None => self.world.step(),
         }
+        self.pins = self.pins_now();
         if let Some(belt) = &self.ground {
             self.contact = read_contacts(&self.world, belt.ground, self.dt);
             self.update_lab_knee_moment();

@@ -313,6 +313,8 @@ pub struct LegPlant {
     body: Option<(Arc<BodySetup>, crate::human::BodyForces)>,
     /// Ground height (m), with contact.
     ground_height_m: Option<f64>,
+    /// Moment arm dL/dtheta (m/rad) at the present knee angle.
+    arm_m: f64,
 }
 
 impl LegPlant {
@@ -356,6 +358,7 @@ impl LegPlant {
             velocity_lead_s: dt_s / (2.0 * setup.solver_iterations as f64),
             body: setup.body.clone().map(|b| (b, crate::human::BodyForces::default())),
             ground_height_m: setup.ground.map(|g| g.height_m),
+            arm_m: arm,
         })
     }
 
@@ -440,7 +443,7 @@ impl Plant for LegPlant {
         // Interaction: positive w1 resists a lengthening surplus of the actuator, so it pushes
         // the knee the way that shortens the cylinder.
         let cuff = if inputs.cuff_force_n != 0.0 {
-            let flex = -moment_arm_at(&self.model, q).signum() * inputs.cuff_force_n;
+            let flex = -self.arm_m.signum() * inputs.cuff_force_n;
             Some((self.cuff_point, self.cuff_force_world(flex)))
         } else {
             None
@@ -464,7 +467,8 @@ impl Plant for LegPlant {
         });
         let dl = self.leg.cylinder_length_change_m();
         let q1 = self.leg.knee_angle_rad();
-        let v = moment_arm_at(&self.model, q1) * self.leg.knee_velocity_rad_s();
+        self.arm_m = moment_arm_at(&self.model, q1);
+        let v = self.arm_m * self.leg.knee_velocity_rad_s();
         self.accel_m_s2 = (v - self.velocity_m_s) / dt_s;
         let free = self.accel_m_s2 - inputs.cylinder_force_n / m_eff;
         self.free_accel_trend_m_s2 = free - self.free_accel_m_s2;
@@ -503,7 +507,7 @@ impl Plant for LegPlant {
             hip_angle_deg: if self.leg.has_hip() { self.leg.hip_angle_rad().to_degrees() } else { 0.0 },
             cylinder_length_m: self.length_m,
             loop_closure_gap_m: self.leg.loop_gap_m(),
-            moment_arm_m: moment_arm_at(&self.model, q),
+            moment_arm_m: self.arm_m,
         })
     }
 }

@@ -81,6 +81,31 @@ pub struct PlantInputs {
     pub cuff_force_n: f64,
     /// Hip flexion (rad) to reach at the end of the step, for a leg whose hip is driven.
     pub hip_target_rad: Option<f64>,
+    /// With [`CoupledMechanics`]: the knee angle (rad) and rate (rad/s) the loop integrated to
+    /// the end of the step together with the hydraulics; the plant takes them as they are.
+    pub knee_end: Option<(f64, f64)>,
+}
+
+/// Mechanics the loop can evaluate at any instant of a step (the reduced engine). The loop
+/// then integrates the knee in the same ODE as the hydraulics and the controller (monolithic
+/// coupling: the force ODE sees the exact piston motion at every stage, and the knee sees the
+/// force as it changes within the step), instead of predicting the piston and handing the
+/// plant the step's average force.
+pub trait CoupledMechanics {
+    /// Piston position (m, from its length at the start of the run) and velocity (m/s) at knee
+    /// angle `q_rad` and rate `qd_rad_s` (rad/s).
+    fn piston_motion(&self, q_rad: f64, qd_rad_s: f64) -> (f64, f64);
+    /// Knee acceleration (rad/s^2) and piston acceleration (m/s^2) at time `t_s`, knee state
+    /// (rad, rad/s), net cylinder force `cylinder_force_n` (N, positive lengthening) and cuff
+    /// force `cuff_force_n` (N, as [`PlantInputs::cuff_force_n`]).
+    fn accelerations(
+        &self,
+        t_s: f64,
+        q_rad: f64,
+        qd_rad_s: f64,
+        cylinder_force_n: f64,
+        cuff_force_n: f64,
+    ) -> (f64, f64);
 }
 
 /// A plant as the co-simulation loop sees it.
@@ -90,6 +115,11 @@ pub trait Plant: Send {
     /// The local piston model for the next step, for plants whose piston responds to force.
     /// `None` (default): the motion is prescribed by [`Plant::piston_at`].
     fn piston_predictor(&self) -> Option<PistonPredictor> {
+        None
+    }
+    /// The mechanics as the loop can integrate them with the hydraulics, for plants that can
+    /// (see [`CoupledMechanics`]). Default `None`: the loop predicts the piston.
+    fn coupled(&self) -> Option<&dyn CoupledMechanics> {
         None
     }
     /// Knee angle (rad), 0 for plants without a knee.

@@ -2,7 +2,7 @@
 //! interface and coupling as [`super::LegPlant`], with the knee integrated in its own coordinate
 //! (see [`crate::leg::ReducedModel`]).
 
-use super::{LegSetup, PistonMotion, PistonPredictor, Plant, PlantInputs};
+use super::{CoupledMechanics, LegSetup, PistonMotion, PistonPredictor, Plant, PlantInputs};
 use crate::error::{Error, Result};
 use crate::leg::{moment_arm_slope_at, ReducedModel};
 use crate::record::LegRow;
@@ -64,6 +64,49 @@ impl ReducedLegPlant {
         let h: RefSample = self.reference.hip_at(t_s).unwrap_or_default();
         (h.value, h.rate, h.accel)
     }
+
+    /// Knee acceleration (rad/s^2) at `t_s`, knee state, net cylinder force (N) and cuff
+    /// torque (N m, flexion positive) with the moment arm `arm_m` (m/rad) at `q`.
+    fn knee_accel(&self, t_s: f64, q: f64, qd: f64, force_n: f64, arm_m: f64, cuff_tau_nm: f64) -> f64 {
+        self.model.acceleration(q, qd, self.hip_at(t_s), force_n * arm_m + cuff_tau_nm)
+    }
+
+    /// Cuff torque about the knee (N m) for the cuff force `cuff_force_n` (N; positive w1
+    /// pushes the knee the way that shortens the cylinder) with the moment arm `arm_m`.
+    fn cuff_torque(&self, cuff_force_n: f64, arm_m: f64) -> f64 {
+        -arm_m.signum() * cuff_force_n * self.cuff_radius_m
+    }
+
+    /// RK4 over one step under a constant cylinder force (used when the loop does not
+    /// integrate the knee itself: a force or free actuator). Returns the knee at the end.
+    fn rk4(&self, t_s: f64, h: f64, force: f64, cuff_force_n: f64) -> (f64, f64) {
+        let m = &self.model;
+        let cuff_tau = self.cuff_torque(cuff_force_n, m.cylinder(self.q).1);
+        let acc = |t: f64, q: f64, qd: f64| self.knee_accel(t, q, qd, force, m.cylinder(q).1, cuff_tau);
+        let (q0, v0) = (self.q, self.qd);
+        let a1 = acc(t_s, q0, v0);
+        let (q2, v2) = (q0 + 0.5 * h * v0, v0 + 0.5 * h * a1);
+        let a2 = acc(t_s + 0.5 * h, q2, v2);
+        let (q3, v3) = (q0 + 0.5 * h * v2, v0 + 0.5 * h * a2);
+        let a3 = acc(t_s + 0.5 * h, q3, v3);
+        let (q4, v4) = (q0 + h * v3, v0 + h * a3);
+        let a4 = acc(t_s + h, q4, v4);
+        (q0 + h / 6.0 * (v0 + 2.0 * v2 + 2.0 * v3 + v4), v0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
+    }
+}
+
+impl CoupledMechanics for ReducedLegPlant {
+    fn piston_motion(&self, q_rad: f64, qd_rad_s: f64) -> (f64, f64) {
+        let (l, arm) = self.model.cylinder(q_rad);
+        (l - self.length0_m, arm * qd_rad_s)
+    }
+
+    fn accelerations(&self, t_s: f64, q: f64, qd: f64, cylinder_force_n: f64, cuff_force_n: f64) -> (f64, f64) {
+        let arm = self.model.cylinder(q).1;
+        let qdd = self.knee_accel(t_s, q, qd, cylinder_force_n, arm, self.cuff_torque(cuff_force_n, arm));
+        // xc_ddot = L'(q) q'' + L''(q) q'^2.
+        (qdd, arm * qdd + moment_arm_slope_at(self.model.model(), q) * qd * qd)
+    }
 }
 
 impl Plant for ReducedLegPlant {
@@ -87,6 +130,10 @@ impl Plant for ReducedLegPlant {
         })
     }
 
+    fn coupled(&self) -> Option<&dyn CoupledMechanics> {
+        Some(self)
+    }
+
     fn knee_rad(&self) -> f64 {
         self.q
     }
@@ -96,22 +143,13 @@ impl Plant for ReducedLegPlant {
     }
 
     fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64> {
-        let m = &self.model;
+        let m = self.model.clone();
         let force = inputs.cylinder_force_n;
-        // The cuff force pushes the knee the way that shortens the cylinder for positive w1.
-        let cuff_flex = -m.cylinder(self.q).1.signum() * inputs.cuff_force_n;
-        let cuff_tau = cuff_flex * self.cuff_radius_m;
-        let acc = |t: f64, q: f64, qd: f64| m.acceleration(q, qd, self.hip_at(t), force * m.cylinder(q).1 + cuff_tau);
-        let (q0, v0, h) = (self.q, self.qd, dt_s);
-        let a1 = acc(t_s, q0, v0);
-        let (q2, v2) = (q0 + 0.5 * h * v0, v0 + 0.5 * h * a1);
-        let a2 = acc(t_s + 0.5 * h, q2, v2);
-        let (q3, v3) = (q0 + 0.5 * h * v2, v0 + 0.5 * h * a2);
-        let a3 = acc(t_s + 0.5 * h, q3, v3);
-        let (q4, v4) = (q0 + h * v3, v0 + h * a3);
-        let a4 = acc(t_s + h, q4, v4);
-        self.q = q0 + h / 6.0 * (v0 + 2.0 * v2 + 2.0 * v3 + v4);
-        self.qd = v0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+        let q0 = self.q;
+        (self.q, self.qd) = match inputs.knee_end {
+            Some(end) => end,
+            None => self.rk4(t_s, dt_s, force, inputs.cuff_force_n),
+        };
         let (l1, arm1) = m.cylinder(self.q);
         let v = arm1 * self.qd;
         let accel = (v - self.velocity_m_s) / dt_s;

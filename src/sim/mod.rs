@@ -40,7 +40,7 @@ mod state;
 
 pub use integrator::Integrator;
 pub use model::Model;
-pub use state::{PistonState, State};
+pub use state::{KneeState, PistonState, State};
 
 use crate::control::{
     self, ControlOutput, Controller, DiscreteController, Measurement, SampleInput, Sampled, ValveLimit,
@@ -69,6 +69,8 @@ const STABILITY_MARGIN: f64 = 0.5;
 pub(crate) struct Held {
     pub predictor: Option<PistonPredictor>,
     pub pd_force_n: f64,
+    /// Cuff force over the step (N, `human.mode = "cuff"`), for coupled mechanics.
+    pub cuff_force_n: f64,
     pub output: Option<ControlOutput>,
 }
 
@@ -179,6 +181,10 @@ impl Simulation {
         self.held.predictor = if self.hydraulic() { self.plant.piston_predictor() } else { None };
         if let Some(p) = &self.held.predictor {
             self.state.piston = PistonState { position_m: p.position_m, velocity_m_s: p.velocity_m_s };
+            if self.plant.coupled().is_some() {
+                self.state.knee =
+                    KneeState { angle_rad: self.plant.knee_rad(), rate_rad_s: self.plant.knee_rate_rad_s() };
+            }
         }
     }
 
@@ -188,7 +194,7 @@ impl Simulation {
         if on_traj && self.hydraulic() {
             let d = self.dynamics();
             let r = d.reference_at(0.0, &self.held);
-            let v = d.piston(0.0, &self.state, self.plant.as_ref(), self.held.predictor.as_ref()).velocity_m_s;
+            let v = d.piston(0.0, &self.state, self.plant.as_ref(), &self.held).velocity_m_s;
             self.sc.cylinder.start_on_trajectory(&mut self.state.hyd, r.value, r.rate, v);
         }
     }
@@ -273,6 +279,8 @@ impl Simulation {
         let s0 = self.dynamics().evaluate(t, &self.state, self.plant.as_ref(), &self.held);
         let w1 = self.interaction(t, s0.force_rate_n_per_s);
         sink.row(&self.dynamics().row(t, &self.state, &s0, w1, self.plant.as_ref(), &self.held))?;
+        let cuff_force_n = if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 };
+        self.held.cuff_force_n = cuff_force_n;
         let start = self.state;
         let v0 = self.plant.piston_at(t).velocity_m_s;
         let r0 = self.dynamics().reference_at(t, &self.held);
@@ -297,8 +305,10 @@ impl Simulation {
         };
         let inputs = PlantInputs {
             cylinder_force_n,
-            cuff_force_n: if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 },
+            cuff_force_n,
             hip_target_rad: self.sc.reference.hip_at(t + dt).map(|h| h.value),
+            knee_end: (self.held.predictor.is_some() && self.plant.coupled().is_some())
+                .then_some((self.state.knee.angle_rad, self.state.knee.rate_rad_s)),
         };
         let stroke = self.plant.advance(t, dt, &inputs)?;
         if self.hydraulic() {

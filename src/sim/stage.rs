@@ -6,7 +6,7 @@ use crate::control::{ControlOutput, Controller, ValveLimit};
 use crate::disturbance::{CHANNEL_FORCE_ACCEL, CHANNEL_FORCE_RATE, CHANNEL_SPOOL};
 use crate::human::HumanMode;
 use crate::hydraulics::{ActuatorMode, ForceChannelInput, ForceSource, PistonKinematics};
-use crate::plant::{PistonMotion, PistonPredictor, Plant};
+use crate::plant::{CoupledMechanics, PistonMotion, PistonPredictor, Plant};
 use crate::record::Row;
 use crate::reference::RefSample;
 use crate::sensors::Truth;
@@ -55,18 +55,33 @@ impl Dynamics<'_> {
     }
 
     /// Piston motion at a stage: prescribed by the plant, or from the predictor states.
-    pub fn piston(&self, t: f64, s: &State, plant: &dyn Plant, pred: Option<&PistonPredictor>) -> PistonMotion {
-        match pred {
-            None => plant.piston_at(t),
-            Some(p) => {
-                // The force ODE sees the plant integrator's effective velocity v + a*lead (see
-                // PistonPredictor).
-                let v = s.piston.velocity_m_s;
-                let a = p.free_accel_m_s2 + (s.hyd.force_n - self.sc.friction.force_n(v)) / p.effective_mass_kg;
-                let v_eff = v + (a - p.lead_exempt_accel_m_s2) * p.velocity_lead_s;
-                PistonMotion { position_m: s.piston.position_m, velocity_m_s: v_eff, accel_m_s2: a }
-            }
+    pub fn piston(&self, t: f64, s: &State, plant: &dyn Plant, held: &Held) -> PistonMotion {
+        match (held.predictor.as_ref(), plant.coupled()) {
+            (None, _) => plant.piston_at(t),
+            (Some(_), Some(c)) => self.coupled(t, s, c, held).0,
+            (Some(p), None) => Self::predicted(s, p, self.sc.friction.force_n(s.piston.velocity_m_s)),
         }
+    }
+
+    /// With coupled mechanics: the piston motion at the knee state of `s` and the knee
+    /// acceleration (rad/s^2).
+    fn coupled(&self, t: f64, s: &State, c: &dyn CoupledMechanics, held: &Held) -> (PistonMotion, f64) {
+        let (q, qd) = (s.knee.angle_rad, s.knee.rate_rad_s);
+        let (x, v) = c.piston_motion(q, qd);
+        let friction_n = self.sc.friction.force_n(v);
+        let (qdd, a) = c.accelerations(t, q, qd, s.hyd.force_n - friction_n, held.cuff_force_n);
+        (PistonMotion { position_m: x, velocity_m_s: v, accel_m_s2: a }, qdd)
+    }
+
+    /// The predictor's piston motion at state `s` with the friction `friction_n` (N) at its
+    /// velocity.
+    fn predicted(s: &State, p: &PistonPredictor, friction_n: f64) -> PistonMotion {
+        // The force ODE sees the plant integrator's effective velocity v + a*lead (see
+        // PistonPredictor).
+        let v = s.piston.velocity_m_s;
+        let a = p.free_accel_m_s2 + (s.hyd.force_n - friction_n) / p.effective_mass_kg;
+        let v_eff = v + (a - p.lead_exempt_accel_m_s2) * p.velocity_lead_s;
+        PistonMotion { position_m: s.piston.position_m, velocity_m_s: v_eff, accel_m_s2: a }
     }
 
     /// The force-channel inputs other than `u`, the raw x2 = dF_L/dt, d(d_F)/dt and the mean
@@ -107,7 +122,7 @@ impl Dynamics<'_> {
     pub fn truth(&self, s: &State, x2: f64, plant: &dyn Plant, t: f64, held: &Held) -> Truth {
         let p = plant.piston_at(t);
         let v = match held.predictor.as_ref() {
-            Some(pred) => self.piston(t, s, plant, Some(pred)).velocity_m_s,
+            Some(_) => self.piston(t, s, plant, held).velocity_m_s,
             None => p.velocity_m_s,
         };
         Truth {
@@ -126,16 +141,26 @@ impl Dynamics<'_> {
     pub fn evaluate(&self, t: f64, s: &State, plant: &dyn Plant, held: &Held) -> Stage {
         let sc = self.sc;
         let pred = held.predictor.as_ref();
-        let mut piston = self.piston(t, s, plant, pred);
+        let coupled = pred.and(plant.coupled()).map(|c| self.coupled(t, s, c, held));
+        // Friction and its slope at the predictor's piston velocity (unused without one).
+        let (friction_n, friction_slope) = match (pred, coupled) {
+            (Some(_), None) => sc.friction.force_and_slope(s.piston.velocity_m_s),
+            _ => (0.0, 0.0),
+        };
+        let mut piston = match (pred, coupled) {
+            (_, Some((m, _))) => m,
+            (Some(p), None) => Self::predicted(s, p, friction_n),
+            (None, None) => plant.piston_at(t),
+        };
         let r = self.reference_at(t, held);
         let (mut inp, x2_raw, d_f_rate, d_mean) = self.environment(t, s, &piston, &r);
         let x2 = sc.cylinder.rate_at_bound(&s.hyd, x2_raw);
         // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
         // da/dt = (dF_L/dt - F_f'(v)*a)/m_eff: the piston acceleration the force ODE
         // experiences, so it is what an ideal sensor reports.
-        if let Some(p) = pred {
+        if let (Some(p), None) = (pred, coupled) {
             let a = piston.accel_m_s2;
-            let a_dot = (x2 - sc.friction.slope_n_s_per_m(s.piston.velocity_m_s) * a) / p.effective_mass_kg;
+            let a_dot = (x2 - friction_slope * a) / p.effective_mass_kg;
             piston.accel_m_s2 = a + p.velocity_lead_s * a_dot;
         }
         let y = Truth {
@@ -154,18 +179,25 @@ impl Dynamics<'_> {
             (Some(o), _) => o,
             (None, Some(c)) => {
                 let n = c.state_len();
-                let o = ValveLimit(sc.actuator.valve_command_limit).apply(c.output(t, &r, &y, &s.controller[..n]));
-                c.derivatives(t, &r, &y, &s.controller[..n], &o, &mut derivative.controller[..n]);
-                o
+                let limit = ValveLimit(sc.actuator.valve_command_limit);
+                c.output_and_derivatives(t, &r, &y, &s.controller[..n], limit, &mut derivative.controller[..n])
             }
             (None, None) => ControlOutput::default(),
         };
         inp.valve_command = out.valve_command;
         derivative.hyd = sc.cylinder.derivatives(&s.hyd, &inp, x2, d_mean);
-        if let Some(p) = pred {
-            derivative.piston.position_m = piston.velocity_m_s;
-            derivative.piston.velocity_m_s =
-                p.free_accel_m_s2 + (s.hyd.force_n - sc.friction.force_n(s.piston.velocity_m_s)) / p.effective_mass_kg;
+        match (pred, coupled) {
+            (_, Some((m, qdd))) => {
+                derivative.piston.position_m = m.velocity_m_s;
+                derivative.piston.velocity_m_s = m.accel_m_s2;
+                derivative.knee.angle_rad = s.knee.rate_rad_s;
+                derivative.knee.rate_rad_s = qdd;
+            }
+            (Some(p), None) => {
+                derivative.piston.position_m = piston.velocity_m_s;
+                derivative.piston.velocity_m_s = p.free_accel_m_s2 + (s.hyd.force_n - friction_n) / p.effective_mass_kg;
+            }
+            (None, None) => {}
         }
         // True dx2/dt (linear model, analytic) and the part of it the controller's nominal model
         // does not explain; NaN for the two-chamber model.

@@ -13,6 +13,16 @@ pub struct PistonState {
     pub velocity_m_s: f64,
 }
 
+/// The knee inside a step when the loop integrates the mechanics itself (a plant with
+/// [`crate::plant::CoupledMechanics`]; unused otherwise).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct KneeState {
+    /// Knee angle (rad).
+    pub angle_rad: f64,
+    /// Knee rate (rad/s).
+    pub rate_rad_s: f64,
+}
+
 /// Everything the loop integrates over a step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct State {
@@ -20,12 +30,14 @@ pub struct State {
     pub hyd: HydraulicState,
     /// Piston predictor.
     pub piston: PistonState,
+    /// Coupled knee.
+    pub knee: KneeState,
     /// Continuous controller state (the first `n` entries are used).
     pub controller: [f64; MAX_CONTROLLER_STATES],
 }
 
 /// Number of plant-side entries in the packed vector.
-const PLANT_LEN: usize = 6;
+const PLANT_LEN: usize = 8;
 /// Length of the packed state vector.
 pub const PACKED_LEN: usize = PLANT_LEN + MAX_CONTROLLER_STATES;
 /// The flat vector the integrators see.
@@ -37,6 +49,8 @@ const ACCEL_DIST: usize = 2;
 const PISTON_POSITION: usize = 3;
 const PISTON_VELOCITY: usize = 4;
 const MEAN_PRESSURE: usize = 5;
+const KNEE_ANGLE: usize = 6;
+const KNEE_RATE: usize = 7;
 
 /// Names of the plant-side entries, in packed order (used in divergence reports).
 const NAMES: [&str; PLANT_LEN] = [
@@ -46,6 +60,8 @@ const NAMES: [&str; PLANT_LEN] = [
     "predicted_piston_m",
     "predicted_piston_velocity_m_s",
     "mean_chamber_pressure_pa",
+    "knee_angle_rad",
+    "knee_rate_rad_s",
 ];
 
 impl State {
@@ -58,6 +74,8 @@ impl State {
         x[PISTON_POSITION] = self.piston.position_m;
         x[PISTON_VELOCITY] = self.piston.velocity_m_s;
         x[MEAN_PRESSURE] = self.hyd.mean_pressure_pa;
+        x[KNEE_ANGLE] = self.knee.angle_rad;
+        x[KNEE_RATE] = self.knee.rate_rad_s;
         x[PLANT_LEN..].copy_from_slice(&self.controller);
         x
     }
@@ -74,6 +92,7 @@ impl State {
                 mean_pressure_pa: x[MEAN_PRESSURE],
             },
             piston: PistonState { position_m: x[PISTON_POSITION], velocity_m_s: x[PISTON_VELOCITY] },
+            knee: KneeState { angle_rad: x[KNEE_ANGLE], rate_rad_s: x[KNEE_RATE] },
             controller,
         }
     }
@@ -101,6 +120,7 @@ mod tests {
         s.hyd.force_n = 1.0;
         s.hyd.mean_pressure_pa = 2.0;
         s.piston.velocity_m_s = 3.0;
+        s.knee.rate_rad_s = 5.0;
         s.controller[2] = 4.0;
         assert_eq!(State::unpack(&s.pack()), s);
         s.controller[1] = f64::NAN;

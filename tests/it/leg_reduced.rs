@@ -84,26 +84,27 @@ fn default_scenario_rapier_converges_to_the_reduced_engine() {
     let short = "sim.duration_s=0.1";
     let (r1, r01) = (max_force_error("reduced", 1e-3, short), max_force_error("reduced", 1e-4, short));
     let (p1, p01) = (max_force_error("rapier", 1e-3, short), max_force_error("rapier", 1e-4, short));
-    // Measured: reduced 9.205 / 9.247 N at 1 / 0.1 ms; Rapier 11.439 / 9.471 N (24 % / 2.4 %
-    // from the reduced engine's 0.1 ms figure): Rapier's coupling error is first order.
-    assert!((r1 - r01).abs() < 0.01 * r01, "reduced {r1} vs {r01}");
+    // Measured: reduced 9.2470 / 9.2457 N at 1 / 0.1 ms (the loop integrates its knee with the
+    // hydraulics); Rapier 11.439 / 9.471 N (24 % / 2.4 % from the reduced engine's 0.1 ms
+    // figure): Rapier's coupling error is first order.
+    assert!((r1 - r01).abs() < 5e-4 * r01, "reduced {r1} vs {r01}");
     assert!((p01 - r01).abs() < 0.06 * r01 && (p1 - r01).abs() > 3.0 * (p01 - r01).abs(), "rapier {p1} / {p01}");
-    // Rapier as the oracle: at 40 / 20 / 10 us, extrapolated to a zero step: 9.24581 N. The
-    // reduced engine at its 1 ms is 0.442 % from it (the limit: 0.5 %), converged
-    // (10 us: 9.24575 N) 7.3e-6 of it.
+    // Rapier as the oracle: at 40 / 20 / 10 us, extrapolated to a zero step: 9.24582 N. The
+    // reduced engine at its 1 ms is 0.013 % from it (the limit: 0.5 %; asserted at
+    // 0.04 %), converged (10 us: 9.245730 N) 1.0e-5 of it.
     let oracle = extrapolate([4e-5, 2e-5, 1e-5].map(|dt| max_force_error("rapier", dt, short)));
     let r_conv = max_force_error("reduced", 1e-5, short);
-    assert!((r1 - oracle).abs() < 0.005 * oracle, "reduced at 1 ms {r1} vs Rapier at zero step {oracle}");
+    assert!((r1 - oracle).abs() < 4e-4 * oracle, "reduced at 1 ms {r1} vs Rapier at zero step {oracle}");
     assert!((r_conv - oracle).abs() < 2e-5 * oracle, "reduced at 10 us {r_conv} vs Rapier at zero step {oracle}");
 }
 
 #[test]
 fn gait_runs_agree_between_engines_and_the_reduced_one_tracks_closer() {
-    let run = |engine: &str, dt: f64| {
+    let run = |scenario: &str, engine: &str, dt: f64| {
         let (e, d) = (format!("leg.engine=\"{engine}\""), format!("sim.dt_s={dt:?}"));
-        run_scenario(&shipped("gait_walk.toml", &[&e, &d, "sim.duration_s=2.2"])).unwrap()
+        run_scenario(&shipped(scenario, &[&e, &d, "sim.duration_s=2.2"])).unwrap()
     };
-    let (a, b) = (run("rapier", 2.5e-4), run("reduced", 2.5e-4));
+    let (a, b) = (run("gait_walk.toml", "rapier", 2.5e-4), run("gait_walk.toml", "reduced", 2.5e-4));
     let (ka, kb) = (knee_deg(&a), knee_deg(&b));
     let diff = ka.iter().zip(&kb).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
     // Measured (2.2 s, 0.25 ms): the two knees within 0.029 deg; knee RMS 0.0098 (Rapier) and
@@ -113,18 +114,26 @@ fn gait_runs_agree_between_engines_and_the_reduced_one_tracks_closer() {
     let (ra, rb) = (a.summary.knee_rms_error_deg.unwrap(), b.summary.knee_rms_error_deg.unwrap());
     assert!(rb < 0.6 * ra, "knee RMS reduced {rb} vs rapier {ra}");
     assert_eq!(b.summary.engine.as_deref(), Some("reduced"));
-    // Rapier as the oracle, extrapolated to a zero step from 100 / 50 / 25 us (order 1.55):
-    // knee RMS 0.002339 deg, force RMS after settling 0.3927 N. The reduced engine at the
-    // scenario's 0.25 ms: 0.002414 deg (3.2 %; the limit 5 %) and 0.3989 N (1.6 %;
-    // limit 2 %).
-    let fine: Vec<_> = [1e-4, 5e-5, 2.5e-5].iter().map(|&dt| run("rapier", dt).summary).collect();
-    let knee = extrapolate([0, 1, 2].map(|i| fine[i].knee_rms_error_deg.unwrap()));
-    let force = extrapolate([0, 1, 2].map(|i| fine[i].rms_force_error_after_settle_n));
-    let (kr, fr) = (rb / knee - 1.0, b.summary.rms_force_error_after_settle_n / force - 1.0);
-    assert!(
-        kr.abs() < 0.05 && fr.abs() < 0.02,
-        "reduced vs Rapier at zero step: knee RMS {kr:+.4}, force RMS {fr:+.4}"
-    );
+    // Rapier as the oracle, extrapolated to a zero step from three steps (order 1.5-1.6). The
+    // reduced engine at the scenarios' 0.25 ms (the limits: knee RMS 5 %, force RMS
+    // 2 %), measured:
+    // - gait_walk (100 / 50 / 25 us): oracle 0.002339 deg and 0.39264 N; reduced 0.002402 deg
+    //   (+2.7 %) and 0.39587 N (+0.82 %);
+    // - gait_walk_fast (50 / 25 / 12.5 us): oracle 0.001458 deg and 0.30254 N; reduced
+    //   0.001506 deg (+3.3 %) and 0.30592 N (+1.1 %).
+    for (scenario, steps) in
+        [("gait_walk.toml", [1e-4, 5e-5, 2.5e-5]), ("gait_walk_fast.toml", [5e-5, 2.5e-5, 1.25e-5])]
+    {
+        let fine: Vec<_> = steps.iter().map(|&dt| run(scenario, "rapier", dt).summary).collect();
+        let knee = extrapolate([0, 1, 2].map(|i| fine[i].knee_rms_error_deg.unwrap()));
+        let force = extrapolate([0, 1, 2].map(|i| fine[i].rms_force_error_after_settle_n));
+        let red = run(scenario, "reduced", 2.5e-4).summary;
+        let (kr, fr) = (red.knee_rms_error_deg.unwrap() / knee - 1.0, red.rms_force_error_after_settle_n / force - 1.0);
+        assert!(
+            kr.abs() < 0.05 && fr.abs() < 0.02,
+            "{scenario}: reduced vs Rapier at zero step: knee RMS {kr:+.4}, force RMS {fr:+.4}"
+        );
+    }
 }
 
 #[test]

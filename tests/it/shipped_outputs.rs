@@ -17,19 +17,25 @@
 //!   30 N m s/rad instead of 3000 / 100) and the belt at the subject's treadmill speed (1.21 m/s
 //!   instead of the stance kinematics' 1.04): stance knee moment correlation -0.06 -> 0.79.
 //!   `stand` holds its hip locked and is unchanged.
+//! - default, gait_walk, gait_walk_fast and the four paper scenarios (issue 11, speed): the
+//!   FDO's powers for the paper's r = 1/3 are a cube root and a cube instead of `powf` (which
+//!   rounds differently in the last bit). Every column moves by at most 3.3e-8 of its peak
+//!   (gait_walk's disturbance estimate; force error <= 1.1e-9 N); the controller's shared terms,
+//!   the friction's one `exp`/`tanh`, and the leg's pins and moment arm computed once per step
+//!   change no number (checked with the general `powf` path: all hashes were equal).
 
 use sha2::{Digest, Sha256};
 use std::path::Path;
 use std::process::Command;
 
 const EXPECTED: [(&str, &str); 9] = [
-    ("default", "f44c3f1360e7d92c6f7e608a92ce2474eac2d6bfd016c5904b33eddbd818a539"),
-    ("gait_walk", "228e8d0463ae68ce45790e251fce18ebf6400187747d47aba1e2cd1f77abdca9"),
-    ("gait_walk_fast", "20c4fce776de2c1ef893dd41f428d0528fe71effad8151e16a8218669a5091cb"),
-    ("paper_10hz_gamma200", "74c22657231e2ef80831ec8b5b6057cbedfbe0b500b5f59789dd5793a38f385c"),
-    ("paper_10hz_gamma300", "814806aa8c7c34483868a89b6441064002bf264a183ccab5508bc0bb67a5fef8"),
-    ("paper_2hz_gamma100", "4d2288b14a36198ad62a4f72887dd318270ad33fd15db751b8b631cce1a23e28"),
-    ("paper_2hz_gamma200", "f95cd1aac3031b84dd9b08319d850256bd709fae503b79fe9d96823eb8a36b90"),
+    ("default", "19271b1fc0835f5b42f73e3d1b2a986d60d2c2b4b5d6246a137b4dfa8e7b55cc"),
+    ("gait_walk", "817d18b464aea404013cd985cd696ac4cbb0483e7d6be5d6500fcba7eff93f7e"),
+    ("gait_walk_fast", "2aca440a7062ac65483baccc3c41a0c7183492315fb41c72562fae135e64cbf5"),
+    ("paper_10hz_gamma200", "9bc1214c575e61847443b8f75018ce77d6265de9de6f4c232bb1200e7fb39150"),
+    ("paper_10hz_gamma300", "7d2e1f4baa8fee0a86ba2b8e80fb8849f239b3f21de45193d74cbe3557f868ab"),
+    ("paper_2hz_gamma100", "1565009d0658711a76d675d78fef0efde17eb08c1054d03ab3b88a56b74ba845"),
+    ("paper_2hz_gamma200", "72ea70b85ea7e97b8f4a516d8ceac413900206a4f7552dbd66148d842273787a"),
     // Added with issue 12 (loaded walking).
     ("stand", "ebbbef10f639cf4d1cdcca6f29348bde76ade2ec752c41d595f891e73d773a91"),
     ("gait_treadmill", "8605cdc7822df2bcb8bec8432fdc145076fee5ac54fcd988b5e1be4f47241b9f"),
