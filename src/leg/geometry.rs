@@ -41,6 +41,17 @@ pub fn moment_arm_slope_at(model: &LegSpec, knee_rad: f64) -> f64 {
     a * b * gamma.cos() / l - s * s / (l * l * l)
 }
 
+/// Cylinder length (m), moment arm `dL/dtheta` (m/rad) and its slope `d^2L/dtheta^2`
+/// (m/rad^2) at one knee angle, with one sine and cosine: the values of
+/// [`cylinder_length_at`], [`moment_arm_at`] and [`moment_arm_slope_at`].
+pub fn cylinder_kinematics_at(model: &LegSpec, knee_rad: f64) -> (f64, f64, f64) {
+    let (a, b, gamma) = triangle(model, knee_rad);
+    let (sin, cos) = gamma.sin_cos();
+    let l = (a * a + b * b - 2.0 * a * b * cos).max(0.0).sqrt();
+    let s = a * b * sin;
+    (l, model.geo.knee_sign * s / l, a * b * cos / l - s * s / (l * l * l))
+}
+
 /// Third derivative of the cylinder length, `d^3L/dtheta^3` (m/rad^3), analytic.
 pub fn moment_arm_curvature_at(model: &LegSpec, knee_rad: f64) -> f64 {
     let (a, b, gamma) = triangle(model, knee_rad);
@@ -54,10 +65,9 @@ pub fn moment_arm_curvature_at(model: &LegSpec, knee_rad: f64) -> f64 {
 
 fn triangle(model: &LegSpec, knee_rad: f64) -> (f64, f64, f64) {
     let g = &model.geo;
-    let pk = g.barrel_origin.t.minus(g.knee_origin.t); // knee -> pivot
-    let w0 = g.shank_point.rot(g.knee_origin.a); // knee -> rod end at theta = 0
-    let gamma = w0.polar() + g.knee_sign * knee_rad - pk.polar();
-    (pk.norm(), g.shank_point.norm(), gamma)
+    let t = &g.triangle;
+    let gamma = t.rod_end_polar_rad + g.knee_sign * knee_rad - t.pivot_polar_rad;
+    (t.a_m, t.b_m, gamma)
 }
 
 /// Solves the loop: barrel angle, rod extension and cylinder length for a knee angle.

@@ -124,6 +124,31 @@ pub(crate) struct LoopGeometry {
     pub knee_range: (f64, f64),
     /// Rod-side closure point in the rod (actuator-joint child) frame.
     pub rod_point: P2,
+    /// The knee-independent parts of the cylinder's triangle (see [`KneeTriangle`]).
+    pub triangle: KneeTriangle,
+}
+
+/// The triangle knee - barrel pivot - rod end: two fixed sides and the angle between them,
+/// which turns with the knee. Its knee-independent parts are computed once per leg.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(crate) struct KneeTriangle {
+    /// Knee to barrel pivot (m).
+    pub a_m: f64,
+    /// Knee to rod end (m).
+    pub b_m: f64,
+    /// Polar angle of knee -> rod end at zero knee angle (rad).
+    pub rod_end_polar_rad: f64,
+    /// Polar angle of knee -> barrel pivot (rad).
+    pub pivot_polar_rad: f64,
+}
+
+impl KneeTriangle {
+    /// The triangle of a knee frame, shank-side point and barrel frame.
+    pub fn new(knee_origin: &Pose2, shank_point: P2, barrel_origin: &Pose2) -> Self {
+        let pk = barrel_origin.t.minus(knee_origin.t); // knee -> pivot
+        let w0 = shank_point.rot(knee_origin.a); // knee -> rod end at theta = 0
+        Self { a_m: pk.norm(), b_m: shank_point.norm(), rod_end_polar_rad: w0.polar(), pivot_polar_rad: pk.polar() }
+    }
 }
 
 /// How the loader treats the leg's joints.

@@ -21,7 +21,7 @@
 //! (at scenario level) ground contact and the pelvis carriage.
 
 use super::error::LegError;
-use super::geometry::{cylinder_length_at, hip_knee_mass_matrix_at, moment_arm_at};
+use super::geometry::{cylinder_kinematics_at, cylinder_length_at, hip_knee_mass_matrix_at, moment_arm_at};
 use super::model::{JointKind, LegSpec, GRAVITY_M_S2};
 use super::planar::P2;
 
@@ -123,6 +123,11 @@ impl ReducedModel {
     /// Cylinder length (m) and its knee derivative (m/rad) at `q`.
     pub fn cylinder(&self, q: f64) -> (f64, f64) {
         (cylinder_length_at(&self.model, q), moment_arm_at(&self.model, q))
+    }
+
+    /// Cylinder length (m), its first (m/rad) and second (m/rad^2) knee derivatives at `q`.
+    pub fn cylinder_kinematics(&self, q: f64) -> (f64, f64, f64) {
+        cylinder_kinematics_at(&self.model, q)
     }
 }
 

@@ -596,11 +596,13 @@ fn loop_geometry(m: &LegSpec) -> Result<LoopGeometry, LegError> {
             c.name
         )));
     }
+    let (knee_origin, barrel_origin) = (fk.mul(&ko), fb.mul(&bo));
     Ok(LoopGeometry {
-        knee_origin: fk.mul(&ko),
+        triangle: super::model::KneeTriangle::new(&knee_origin, shank_point, &barrel_origin),
+        knee_origin,
         knee_sign: joints[knee].axis[1].signum(),
         shank_point,
-        barrel_origin: fb.mul(&bo),
+        barrel_origin,
         barrel_sign: joints[barrel].axis[1].signum(),
         u: ro.apply(rod_point),
         v: P2::new(ra[0], ra[2]).rot(ro.a),

@@ -92,20 +92,27 @@ pub struct PlantInputs {
 /// force as it changes within the step), instead of predicting the piston and handing the
 /// plant the step's average force.
 pub trait CoupledMechanics {
-    /// Piston position (m, from its length at the start of the run) and velocity (m/s) at knee
-    /// angle `q_rad` and rate `qd_rad_s` (rad/s).
-    fn piston_motion(&self, q_rad: f64, qd_rad_s: f64) -> (f64, f64);
-    /// Knee acceleration (rad/s^2) and piston acceleration (m/s^2) at time `t_s`, knee state
-    /// (rad, rad/s), net cylinder force `cylinder_force_n` (N, positive lengthening) and cuff
-    /// force `cuff_force_n` (N, as [`PlantInputs::cuff_force_n`]).
-    fn accelerations(
+    /// The piston and the knee at time `t_s` and knee state `q_rad`, `qd_rad_s` (rad, rad/s):
+    /// `net_force_n` gives the net cylinder force (N, positive lengthening) at a piston velocity
+    /// (m/s); `cuff_force_n` is as [`PlantInputs::cuff_force_n`] (N).
+    fn stage(
         &self,
         t_s: f64,
         q_rad: f64,
         qd_rad_s: f64,
-        cylinder_force_n: f64,
+        net_force_n: &dyn Fn(f64) -> f64,
         cuff_force_n: f64,
-    ) -> (f64, f64);
+    ) -> CoupledStage;
+}
+
+/// One evaluation of [`CoupledMechanics`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoupledStage {
+    /// The piston: position from its length at the start of the run (m), velocity (m/s),
+    /// acceleration (m/s^2).
+    pub piston: PistonMotion,
+    /// Knee acceleration (rad/s^2).
+    pub knee_accel_rad_s2: f64,
 }
 
 /// A plant as the co-simulation loop sees it.

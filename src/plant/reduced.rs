@@ -2,7 +2,7 @@
 //! interface and coupling as [`super::LegPlant`], with the knee integrated in its own coordinate
 //! (see [`crate::leg::ReducedModel`]).
 
-use super::{CoupledMechanics, LegSetup, PistonMotion, PistonPredictor, Plant, PlantInputs};
+use super::{CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, Plant, PlantInputs};
 use crate::error::{Error, Result};
 use crate::leg::{moment_arm_slope_at, ReducedModel};
 use crate::record::LegRow;
@@ -96,16 +96,16 @@ impl ReducedLegPlant {
 }
 
 impl CoupledMechanics for ReducedLegPlant {
-    fn piston_motion(&self, q_rad: f64, qd_rad_s: f64) -> (f64, f64) {
-        let (l, arm) = self.model.cylinder(q_rad);
-        (l - self.length0_m, arm * qd_rad_s)
-    }
-
-    fn accelerations(&self, t_s: f64, q: f64, qd: f64, cylinder_force_n: f64, cuff_force_n: f64) -> (f64, f64) {
-        let arm = self.model.cylinder(q).1;
-        let qdd = self.knee_accel(t_s, q, qd, cylinder_force_n, arm, self.cuff_torque(cuff_force_n, arm));
+    fn stage(&self, t_s: f64, q: f64, qd: f64, net_force_n: &dyn Fn(f64) -> f64, cuff_force_n: f64) -> CoupledStage {
+        let (l, arm, arm_slope) = self.model.cylinder_kinematics(q);
+        let v = arm * qd;
+        let qdd = self.knee_accel(t_s, q, qd, net_force_n(v), arm, self.cuff_torque(cuff_force_n, arm));
         // xc_ddot = L'(q) q'' + L''(q) q'^2.
-        (qdd, arm * qdd + moment_arm_slope_at(self.model.model(), q) * qd * qd)
+        let accel_m_s2 = arm * qdd + arm_slope * qd * qd;
+        CoupledStage {
+            piston: PistonMotion { position_m: l - self.length0_m, velocity_m_s: v, accel_m_s2 },
+            knee_accel_rad_s2: qdd,
+        }
     }
 }
 

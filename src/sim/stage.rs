@@ -66,11 +66,9 @@ impl Dynamics<'_> {
     /// With coupled mechanics: the piston motion at the knee state of `s` and the knee
     /// acceleration (rad/s^2).
     fn coupled(&self, t: f64, s: &State, c: &dyn CoupledMechanics, held: &Held) -> (PistonMotion, f64) {
-        let (q, qd) = (s.knee.angle_rad, s.knee.rate_rad_s);
-        let (x, v) = c.piston_motion(q, qd);
-        let friction_n = self.sc.friction.force_n(v);
-        let (qdd, a) = c.accelerations(t, q, qd, s.hyd.force_n - friction_n, held.cuff_force_n);
-        (PistonMotion { position_m: x, velocity_m_s: v, accel_m_s2: a }, qdd)
+        let net_force = |v: f64| s.hyd.force_n - self.sc.friction.force_n(v);
+        let st = c.stage(t, s.knee.angle_rad, s.knee.rate_rad_s, &net_force, held.cuff_force_n);
+        (st.piston, st.knee_accel_rad_s2)
     }
 
     /// The predictor's piston motion at state `s` with the friction `friction_n` (N) at its
