@@ -14,8 +14,9 @@
 //! knee (knee, barrel hinge and rod slide), `L(q)` the cylinder length and `r_cuff` the cuff
 //! point's distance from the knee axis. Every coefficient is tabulated once per leg at load time
 //! (linear interpolation on a fine grid) from the same pure-geometry functions the tests check
-//! against Rapier; `L` and `L'` are evaluated in closed form. A step integrates `(q, q')` with
-//! classic RK4 under the step's constant force and the hip's trajectory sampled at the RK4 stages.
+//! against Rapier; `L`, `L'` and `L''` are evaluated in closed form. The simulation loop
+//! integrates `(q, q')` together with the hydraulics (see [`crate::plant::CoupledMechanics`]),
+//! with the hip's trajectory sampled at the integrator's stages.
 //!
 //! It refuses what it cannot do: legs that are not planar (a joint axis off the y axis), and
 //! (at scenario level) ground contact and the pelvis carriage.

@@ -1,6 +1,9 @@
-//! The leg on the reduced-coordinate engine (`leg.engine = "reduced"`): the same plant
-//! interface and coupling as [`super::LegPlant`], with the knee integrated in its own coordinate
-//! (see [`crate::leg::ReducedModel`]).
+//! The leg on the reduced-coordinate engine (`leg.engine = "reduced"`): the knee in its own
+//! coordinate (see [`crate::leg::ReducedModel`]). With the hydraulic actuator the loop integrates
+//! the knee in the same ODE as the hydraulics and the controller ([`CoupledMechanics`]: at every
+//! integrator stage the force ODE sees the exact piston motion and the knee the force of that
+//! stage); with a prescribed force or none, the plant integrates the knee itself (RK4 under the
+//! step's force).
 
 use super::{CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, Plant, PlantInputs};
 use crate::error::{Error, Result};
