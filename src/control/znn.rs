@@ -193,6 +193,30 @@ mod tests {
 
     /// The sampled observer update is backward Euler: the new z satisfies
     /// `z1 = z0 + Ts*(a + L*psi(x2 - z1))` to round-off, even where forward Euler would blow up.
+    /// One stage through `output_and_derivatives` gives exactly the output and the rates of the
+    /// two separate calls, clipped or not.
+    #[test]
+    fn shared_stage_equals_the_separate_calls() {
+        let model = NominalModel { c: HydraulicParams::default().coefficients() };
+        let fdo = Fdo::new(ObserverParams::default());
+        let c = Znn::new(model, 100.0, Some((RbfNetwork::new(RbfParams::default()), fdo)));
+        let y = Measurement { force_n: 120.0, force_rate_n_per_s: 900.0, spool_m: 1e-5, ..Default::default() };
+        let r = RefSample { value: 100.0, rate: 800.0, accel: 30.0 };
+        let s = [850.0, 0.3, -0.2, 0.1, 0.0, 0.05, -0.4, 0.2];
+        let free = c.output(0.0, &r, &y, &s).valve_command.abs();
+        for limit in [ValveLimit(0.0), ValveLimit(0.5 * free)] {
+            let (mut d1, mut d2) = ([0.0; 8], [0.0; 8]);
+            let o1 = limit.apply(c.output(0.0, &r, &y, &s));
+            c.derivatives(0.0, &r, &y, &s, &o1, &mut d1);
+            let o2 = c.output_and_derivatives(0.0, &r, &y, &s, limit, &mut d2);
+            assert_eq!(o1, o2);
+            assert_eq!(d1, d2);
+            assert_eq!(o2.saturated, limit.0 > 0.0);
+            // The weights move unless the valve saturated.
+            assert_eq!(d2[1] == 0.0, o2.saturated);
+        }
+    }
+
     #[test]
     fn sampled_observer_step_is_backward_euler() {
         let model = NominalModel { c: HydraulicParams::default().coefficients() };

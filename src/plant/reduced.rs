@@ -146,13 +146,13 @@ impl Plant for ReducedLegPlant {
     }
 
     fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64> {
-        let m = self.model.clone();
         let force = inputs.cylinder_force_n;
         let q0 = self.q;
         (self.q, self.qd) = match inputs.knee_end {
             Some(end) => end,
             None => self.rk4(t_s, dt_s, force, inputs.cuff_force_n),
         };
+        let m = &self.model;
         let (l1, arm1) = m.cylinder(self.q);
         let v = arm1 * self.qd;
         let accel = (v - self.velocity_m_s) / dt_s;

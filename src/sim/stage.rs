@@ -54,7 +54,8 @@ impl Dynamics<'_> {
         }
     }
 
-    /// Piston motion at a stage: prescribed by the plant, or from the predictor states.
+    /// Piston motion at a stage: prescribed by the plant, from the coupled knee states, or from
+    /// the predictor states.
     pub fn piston(&self, t: f64, s: &State, plant: &dyn Plant, held: &Held) -> PistonMotion {
         match (held.predictor.as_ref(), plant.coupled()) {
             (None, _) => plant.piston_at(t),
