@@ -86,9 +86,9 @@ pub enum Command {
     },
     /// Robustness report: vary beta, V0, K_q, friction and the human gains by +-PERCENT % (the
     /// controller keeps the nominal model), add the paper's Table 2 disturbances, and check
-    /// each run against the scenario's [criteria]. Exit code 4 if any run fails.
+    /// each run against the scenario's criteria table. Exit code 4 if any run fails.
     Robustness {
-        /// Base scenario (TOML); its [criteria] are the pass/fail limits.
+        /// Base scenario (TOML); its criteria table holds the pass/fail limits.
         scenario: PathBuf,
         /// Half-width of the uniform variation, in percent.
         #[arg(long, default_value_t = 20.0)]

@@ -1,7 +1,7 @@
 //! exoleg: a simulator for force control of hydraulic lower-limb exoskeletons.
 //!
 //! The blocks of the control diagram each have a module:
-//! [`reference`] -> [`control`] (ZNN, ARBFNN-FDO-ZNN, ERL-SMC, the knee PD) -> [`hydraulics`]
+//! [`reference`](mod@reference) -> [`control`] (ZNN, ARBFNN-FDO-ZNN, ERL-SMC, the knee PD) -> [`hydraulics`]
 //! (valve + cylinder) -> [`plant`] (bench or leg mechanics; [`leg`] is the URDF leg in Rapier)
 //! -> [`sensors`] -> back to the controller, with [`human`] interaction and [`disturbance`]s
 //! injected. [`scenario`] reads, validates and resolves scenario files; [`sim`] is the

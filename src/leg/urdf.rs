@@ -1,16 +1,16 @@
 //! URDF -> [`LegSpec`], kept apart from the domain model (as openrr/k keeps its conversion
 //! apart). One small function per step:
 //!
-//! 1. [`check_nesting`]: well-formed XML no deeper than [`MAX_XML_DEPTH`] (roxmltree; a deeper
+//! 1. `check_nesting`: well-formed XML no deeper than [`MAX_XML_DEPTH`] (roxmltree; a deeper
 //!    file would overflow the stack of the URDF deserialiser).
-//! 2. [`links`]: mass properties, finite and of sane magnitude; a link without `<inertial>` has
+//! 2. `links`: mass properties, finite and of sane magnitude; a link without `<inertial>` has
 //!    mass 0 (the URDF spec's default); only the bodies that move (after merging the links
 //!    welded to them by fixed joints, as Drake, MuJoCo and Pinocchio do) need mass and inertia.
-//! 3. [`joints`] and [`tree_order`]: one root, a tree, parent-before-child order.
-//! 4. [`loop_closure`] and [`actuator`]: the two extension elements.
-//! 5. [`check_planar`] and [`check_topology`]: the sagittal knee + cylinder loop.
-//! 6. [`check_moving_bodies`]: merged mass and inertia of every moving body.
-//! 7. [`loop_geometry`] and [`check_reachable`]: the planar loop and its stroke over the knee
+//! 3. `joints` and `tree_order`: one root, a tree, parent-before-child order.
+//! 4. `loop_closure` and `actuator`: the two extension elements.
+//! 5. `check_planar` and `check_topology`: the sagittal knee + cylinder loop.
+//! 6. `check_moving_bodies`: merged mass and inertia of every moving body.
+//! 7. `loop_geometry` and `check_reachable`: the planar loop and its stroke over the knee
 //!    range.
 
 use std::collections::HashMap;
