@@ -40,7 +40,7 @@ mod state;
 
 pub use integrator::Integrator;
 pub use model::Model;
-pub use state::{KneeState, PistonState, State};
+pub use state::{KneeState, Packed, PistonState, State};
 
 use crate::control::{
     self, ControlOutput, Controller, DiscreteController, Measurement, SampleInput, Sampled, ValveLimit,
@@ -280,6 +280,9 @@ impl Simulation {
         let w1 = self.interaction(t, s0.force_rate_n_per_s);
         sink.row(&self.dynamics().row(t, &self.state, &s0, w1, self.plant.as_ref(), &self.held))?;
         let cuff_force_n = if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 };
+        // The integrator's first stage is s0 unless coupled mechanics now see another cuff force.
+        let first = s0.derivative.pack();
+        let reuse_first = self.plant.coupled().is_none() || self.held.cuff_force_n == cuff_force_n;
         self.held.cuff_force_n = cuff_force_n;
         let start = self.state;
         let v0 = self.plant.piston_at(t).velocity_m_s;
@@ -290,9 +293,12 @@ impl Simulation {
             let (plant, held, h) = (self.plant.as_ref(), &self.held, dt / n as f64);
             let mut x = start.pack();
             for i in 0..n {
-                x = self.sc.integrator.step(t + i as f64 * h, h, &x, |tau, xs| {
-                    d.evaluate(tau, &State::unpack(xs), plant, held).derivative.pack()
-                });
+                let f = |tau: f64, xs: &Packed| d.evaluate(tau, &State::unpack(xs), plant, held).derivative.pack();
+                let ti = t + i as f64 * h;
+                x = match (i, reuse_first) {
+                    (0, true) => self.sc.integrator.step_from(ti, h, &x, &first, f),
+                    _ => self.sc.integrator.step(ti, h, &x, f),
+                };
             }
             self.state = State::unpack(&x);
         }
