@@ -169,8 +169,9 @@ impl Dynamics<'_> {
             piston_m: piston.position_m,
             piston_velocity_m_s: piston.velocity_m_s,
             piston_accel_m_s2: piston.accel_m_s2,
-            knee_rad: plant.knee_rad(),
-            knee_rate_rad_s: plant.knee_rate_rad_s(),
+            // Coupled mechanics: the knee at this stage; otherwise the plant's at the step start.
+            knee_rad: if coupled.is_some() { s.knee.angle_rad } else { plant.knee_rad() },
+            knee_rate_rad_s: if coupled.is_some() { s.knee.rate_rad_s } else { plant.knee_rate_rad_s() },
         }
         .ideal();
         let mut derivative = State::default();
