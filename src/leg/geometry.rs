@@ -27,23 +27,18 @@ pub fn cylinder_length_at(model: &LegSpec, knee_rad: f64) -> f64 {
 /// Moment arm `dL/dtheta` of the cylinder about the knee, m/rad (analytic derivative of the law
 /// of cosines: `sigma * a b sin(gamma) / L`). Negative when flexion shortens the cylinder.
 pub fn moment_arm_at(model: &LegSpec, knee_rad: f64) -> f64 {
-    let (a, b, gamma) = triangle(model, knee_rad);
-    let l = (a * a + b * b - 2.0 * a * b * gamma.cos()).max(0.0).sqrt();
-    model.geo.knee_sign * a * b * gamma.sin() / l
+    cylinder_kinematics_at(model, knee_rad).1
 }
 
 /// Slope of the moment arm, `d^2L/dtheta^2` (m/rad^2), analytic:
 /// `a b cos(gamma) / L - (a b sin(gamma))^2 / L^3` (the sign of the knee axis squares away).
 pub fn moment_arm_slope_at(model: &LegSpec, knee_rad: f64) -> f64 {
-    let (a, b, gamma) = triangle(model, knee_rad);
-    let l = (a * a + b * b - 2.0 * a * b * gamma.cos()).max(0.0).sqrt();
-    let s = a * b * gamma.sin();
-    a * b * gamma.cos() / l - s * s / (l * l * l)
+    cylinder_kinematics_at(model, knee_rad).2
 }
 
 /// Cylinder length (m), moment arm `dL/dtheta` (m/rad) and its slope `d^2L/dtheta^2`
-/// (m/rad^2) at one knee angle, with one sine and cosine: the values of
-/// [`cylinder_length_at`], [`moment_arm_at`] and [`moment_arm_slope_at`].
+/// (m/rad^2) at one knee angle, with one sine and cosine (the length is
+/// [`cylinder_length_at`]'s).
 pub fn cylinder_kinematics_at(model: &LegSpec, knee_rad: f64) -> (f64, f64, f64) {
     let (a, b, gamma) = triangle(model, knee_rad);
     let (sin, cos) = gamma.sin_cos();
