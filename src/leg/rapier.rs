@@ -1,7 +1,7 @@
 //! Rapier (f64) simulation of the leg + cylinder closed loop.
 //!
 //! Structure: one reduced-coordinate multibody tree (thigh = fixed root; knee, barrel pivot and
-//! rod slide as multibody joints, fixed joints welded in) plus one impulse joint (spherical) that
+//! rod slide as multibody joints, fixed joints welded in) plus one impulse joint (a pin in the sagittal plane) that
 //! closes the loop at the rod end. No colliders: mass properties come from the URDF `<inertial>`
 //! only. Gravity is -9.81 m/s^2 along z.
 //!
@@ -17,8 +17,7 @@ pub use rapier3d_f64::math::Pose;
 use rapier3d_f64::math::Vector;
 use rapier3d_f64::prelude::{
     GenericJoint, GenericJointBuilder, ImpulseJointHandle, IntegrationParameters, JointAxesMask, JointAxis,
-    MassProperties, Multibody, MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SphericalJointBuilder,
-    SpringCoefficients,
+    MassProperties, Multibody, MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SpringCoefficients,
 };
 
 use super::error::LegError;
@@ -410,7 +409,9 @@ fn initial_coords(model: &LegSpec, initial_knee_rad: f64, mount: &Mount, dt_s: f
     Ok(q)
 }
 
-/// The loop closure: a spherical impulse joint at the rod end. Returns it, its anchors in the
+/// The loop closure: an impulse joint at the rod end locking the two in-plane translations
+/// (x, z; the leg is planar, so the out-of-plane row a spherical joint adds is redundant: it
+/// only cost solver time; no shipped output changes without it). Returns it, its anchors in the
 /// two links' frames, and whether the rod is its first body.
 fn insert_closure(
     world: &mut PhysicsWorld,
@@ -420,7 +421,7 @@ fn insert_closure(
 ) -> (ImpulseJointHandle, DVec3, DVec3, bool) {
     let c = &model.closure;
     let (anchor1, anchor2) = (DVec3::from(c.anchor1_m), DVec3::from(c.anchor2_m));
-    let sj = SphericalJointBuilder::new()
+    let sj = GenericJointBuilder::new(JointAxesMask::LIN_X | JointAxesMask::LIN_Z)
         .local_anchor1(welds.offset[c.link1] * anchor1)
         .local_anchor2(welds.offset[c.link2] * anchor2)
         .contacts_enabled(false);
@@ -1176,7 +1177,7 @@ impl Leg {
         })
     }
 
-    /// Handle of the loop-closure impulse joint (spherical joint at the rod end).
+    /// Handle of the loop-closure impulse joint (the in-plane pin at the rod end).
     pub fn closure_joint(&self) -> ImpulseJointHandle {
         self.closure
     }
