@@ -1,6 +1,6 @@
 //! The URDF leg in Rapier as a plant of the co-simulation loop.
 
-use super::{PistonMotion, PistonPredictor, Plant, PlantInputs};
+use super::{PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs};
 use crate::error::{Error, Result};
 use crate::leg::{
     generalized_inertia_at, knee_forward_acceleration, moment_arm_at, moment_arm_slope_at, CarriageConfig, Leg,
@@ -294,15 +294,8 @@ pub struct LegPlant {
     leg: Leg,
     model: Arc<LegSpec>,
     mass: Arc<MassTable>,
-    length0_m: f64,
-    length_m: f64,
-    /// Piston velocity at the end of the last step, from Rapier's generalized velocity (m/s).
-    velocity_m_s: f64,
-    /// Measured piston acceleration over the last step (m/s^2).
-    accel_m_s2: f64,
-    free_accel_m_s2: f64,
-    /// Change of the free acceleration over the last step (m/s^2), for linear extrapolation.
-    free_accel_trend_m_s2: f64,
+    /// The piston (velocity from Rapier's generalized velocity).
+    piston: PistonTrack,
     cuff_point: [f64; 3],
     shank_link: usize,
     knee_axis: DVec3,
@@ -345,12 +338,7 @@ impl LegPlant {
             leg,
             model,
             mass,
-            length0_m,
-            length_m: length0_m,
-            velocity_m_s: arm * qd0,
-            accel_m_s2: free_accel_m_s2,
-            free_accel_m_s2,
-            free_accel_trend_m_s2: 0.0,
+            piston: PistonTrack::new(length0_m, arm * qd0, free_accel_m_s2),
             cuff_point,
             shank_link,
             knee_axis,
@@ -407,27 +395,13 @@ impl LegPlant {
 
 impl Plant for LegPlant {
     fn piston_at(&self, _t_s: f64) -> PistonMotion {
-        PistonMotion {
-            position_m: self.length_m - self.length0_m,
-            velocity_m_s: self.velocity_m_s,
-            accel_m_s2: self.accel_m_s2,
-        }
+        self.piston.motion()
     }
 
     fn piston_predictor(&self) -> Option<PistonPredictor> {
-        Some(PistonPredictor {
-            position_m: self.length_m - self.length0_m,
-            velocity_m_s: self.velocity_m_s,
-            // The free acceleration measured over the last step is centred half a step back;
-            // extrapolate it linearly to the middle of the coming step.
-            free_accel_m_s2: self.free_accel_m_s2 + self.free_accel_trend_m_s2,
-            effective_mass_kg: self.mass.at(self.leg.knee_angle_rad()),
-            velocity_lead_s: self.velocity_lead_s,
-            lead_exempt_accel_m_s2: {
-                let (q, qd) = (self.leg.knee_angle_rad(), self.leg.knee_velocity_rad_s());
-                moment_arm_slope_at(&self.model, q) * qd * qd
-            },
-        })
+        let (q, qd) = (self.leg.knee_angle_rad(), self.leg.knee_velocity_rad_s());
+        let exempt = moment_arm_slope_at(&self.model, q) * qd * qd;
+        Some(self.piston.predictor(self.mass.at(q), self.velocity_lead_s, exempt))
     }
 
     fn knee_rad(&self) -> f64 {
@@ -469,14 +443,9 @@ impl Plant for LegPlant {
         let q1 = self.leg.knee_angle_rad();
         self.arm_m = moment_arm_at(&self.model, q1);
         let v = self.arm_m * self.leg.knee_velocity_rad_s();
-        self.accel_m_s2 = (v - self.velocity_m_s) / dt_s;
-        let free = self.accel_m_s2 - inputs.cylinder_force_n / m_eff;
-        self.free_accel_trend_m_s2 = free - self.free_accel_m_s2;
-        self.free_accel_m_s2 = free;
-        self.velocity_m_s = v;
-        self.length_m += dl;
+        self.piston.record(self.piston.length_m() + dl, v, inputs.cylinder_force_n, m_eff, dt_s);
         self.max_gap_m = self.max_gap_m.max(self.leg.loop_gap_m());
-        if !q1.is_finite() || !self.length_m.is_finite() || !v.is_finite() {
+        if !q1.is_finite() || !self.piston.length_m().is_finite() || !v.is_finite() {
             return Err(Error::Diverged { time_s: t_s + dt_s, state: "knee_angle_rad".into(), value: q1 });
         }
         Ok(dl)
@@ -505,7 +474,7 @@ impl Plant for LegPlant {
             knee_angle_deg: q.to_degrees(),
             knee_velocity_deg_s: self.leg.knee_velocity_rad_s().to_degrees(),
             hip_angle_deg: if self.leg.has_hip() { self.leg.hip_angle_rad().to_degrees() } else { 0.0 },
-            cylinder_length_m: self.length_m,
+            cylinder_length_m: self.piston.length_m(),
             loop_closure_gap_m: self.leg.loop_gap_m(),
             moment_arm_m: self.arm_m,
         })

@@ -70,6 +70,89 @@ pub struct PistonPredictor {
     pub lead_exempt_accel_m_s2: f64,
 }
 
+/// The piston as a mechanical plant tracks it from step to step: its stroke, its velocity and
+/// the acceleration measured over the last step, split into the part the cylinder force
+/// explains and the free rest, which the next step's [`PistonPredictor`] extrapolates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PistonTrack {
+    /// Cylinder length at the start of the run (m).
+    length0_m: f64,
+    /// Cylinder length now (m).
+    length_m: f64,
+    /// Piston velocity at the end of the last step (m/s).
+    velocity_m_s: f64,
+    /// Measured piston acceleration over the last step (m/s^2).
+    accel_m_s2: f64,
+    /// The part of it with no cylinder force (m/s^2).
+    free_accel_m_s2: f64,
+    /// Change of the free acceleration over the last step (m/s^2), for linear extrapolation.
+    free_accel_trend_m_s2: f64,
+}
+
+impl PistonTrack {
+    /// At rest in the record: length (m), velocity (m/s) and the free acceleration (m/s^2).
+    pub fn new(length_m: f64, velocity_m_s: f64, free_accel_m_s2: f64) -> Self {
+        Self {
+            length0_m: length_m,
+            length_m,
+            velocity_m_s,
+            accel_m_s2: free_accel_m_s2,
+            free_accel_m_s2,
+            free_accel_trend_m_s2: 0.0,
+        }
+    }
+
+    /// Cylinder length now (m).
+    pub fn length_m(&self) -> f64 {
+        self.length_m
+    }
+
+    /// Piston position (m, from the start length) at cylinder length `length_m` (m).
+    pub fn position_at(&self, length_m: f64) -> f64 {
+        length_m - self.length0_m
+    }
+
+    /// The piston's motion now.
+    pub fn motion(&self) -> PistonMotion {
+        PistonMotion {
+            position_m: self.position_at(self.length_m),
+            velocity_m_s: self.velocity_m_s,
+            accel_m_s2: self.accel_m_s2,
+        }
+    }
+
+    /// The predictor for the next step with the effective mass (kg) there, the plant
+    /// integrator's velocity lead (s) and the acceleration exempt from it (m/s^2).
+    pub fn predictor(
+        &self,
+        effective_mass_kg: f64,
+        velocity_lead_s: f64,
+        lead_exempt_accel_m_s2: f64,
+    ) -> PistonPredictor {
+        PistonPredictor {
+            position_m: self.position_at(self.length_m),
+            velocity_m_s: self.velocity_m_s,
+            // The free acceleration measured over the last step is centred half a step back;
+            // extrapolate it linearly to the middle of the coming step.
+            free_accel_m_s2: self.free_accel_m_s2 + self.free_accel_trend_m_s2,
+            effective_mass_kg,
+            velocity_lead_s,
+            lead_exempt_accel_m_s2,
+        }
+    }
+
+    /// After a step of `dt_s` (s) under the net cylinder force `force_n` (N) with the effective
+    /// mass `effective_mass_kg` (kg) at its start: the new length (m) and velocity (m/s).
+    pub fn record(&mut self, length_m: f64, velocity_m_s: f64, force_n: f64, effective_mass_kg: f64, dt_s: f64) {
+        self.accel_m_s2 = (velocity_m_s - self.velocity_m_s) / dt_s;
+        let free = self.accel_m_s2 - force_n / effective_mass_kg;
+        self.free_accel_trend_m_s2 = free - self.free_accel_m_s2;
+        self.free_accel_m_s2 = free;
+        self.velocity_m_s = velocity_m_s;
+        self.length_m = length_m;
+    }
+}
+
 /// What the loop applies to the plant over one step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PlantInputs {

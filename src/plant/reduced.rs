@@ -5,7 +5,7 @@
 //! stage); with a prescribed force or none, the plant integrates the knee itself (RK4 under the
 //! step's force).
 
-use super::{CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, Plant, PlantInputs};
+use super::{CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs};
 use crate::error::{Error, Result};
 use crate::leg::{moment_arm_slope_at, ReducedModel};
 use crate::record::LegRow;
@@ -18,13 +18,7 @@ pub struct ReducedLegPlant {
     reference: ForceReference,
     q: f64,
     qd: f64,
-    length0_m: f64,
-    length_m: f64,
-    velocity_m_s: f64,
-    /// Measured piston acceleration over the last step (m/s^2).
-    accel_m_s2: f64,
-    free_accel_m_s2: f64,
-    free_accel_trend_m_s2: f64,
+    piston: PistonTrack,
     /// Distance of the cuff point from the knee axis (m).
     cuff_radius_m: f64,
     driven_hip: bool,
@@ -47,12 +41,7 @@ impl ReducedLegPlant {
             reference,
             q,
             qd,
-            length0_m: l,
-            length_m: l,
-            velocity_m_s: arm * qd,
-            accel_m_s2: free,
-            free_accel_m_s2: free,
-            free_accel_trend_m_s2: 0.0,
+            piston: PistonTrack::new(l, arm * qd, free),
             cuff_radius_m: (cuff[0] * cuff[0] + cuff[2] * cuff[2]).sqrt(),
             driven_hip,
             hip_rad: hip.value,
@@ -106,7 +95,7 @@ impl CoupledMechanics for ReducedLegPlant {
         // xc_ddot = L'(q) q'' + L''(q) q'^2.
         let accel_m_s2 = arm * qdd + arm_slope * qd * qd;
         CoupledStage {
-            piston: PistonMotion { position_m: l - self.length0_m, velocity_m_s: v, accel_m_s2 },
+            piston: PistonMotion { position_m: self.piston.position_at(l), velocity_m_s: v, accel_m_s2 },
             knee_accel_rad_s2: qdd,
         }
     }
@@ -114,23 +103,12 @@ impl CoupledMechanics for ReducedLegPlant {
 
 impl Plant for ReducedLegPlant {
     fn piston_at(&self, _t_s: f64) -> PistonMotion {
-        PistonMotion {
-            position_m: self.length_m - self.length0_m,
-            velocity_m_s: self.velocity_m_s,
-            accel_m_s2: self.accel_m_s2,
-        }
+        self.piston.motion()
     }
 
     fn piston_predictor(&self) -> Option<PistonPredictor> {
-        Some(PistonPredictor {
-            position_m: self.length_m - self.length0_m,
-            velocity_m_s: self.velocity_m_s,
-            free_accel_m_s2: self.free_accel_m_s2 + self.free_accel_trend_m_s2,
-            effective_mass_kg: self.model.effective_mass_kg(self.q),
-            // RK4 has no substep lead.
-            velocity_lead_s: 0.0,
-            lead_exempt_accel_m_s2: 0.0,
-        })
+        // No substep lead (the knee is integrated with the hydraulics, or by RK4).
+        Some(self.piston.predictor(self.model.effective_mass_kg(self.q), 0.0, 0.0))
     }
 
     fn coupled(&self) -> Option<&dyn CoupledMechanics> {
@@ -155,16 +133,10 @@ impl Plant for ReducedLegPlant {
         let m = &self.model;
         let (l1, arm1) = m.cylinder(self.q);
         let v = arm1 * self.qd;
-        let accel = (v - self.velocity_m_s) / dt_s;
-        self.accel_m_s2 = accel;
-        let free = accel - force / m.effective_mass_kg(q0);
-        self.free_accel_trend_m_s2 = free - self.free_accel_m_s2;
-        self.free_accel_m_s2 = free;
-        self.velocity_m_s = v;
-        let dl = l1 - self.length_m;
-        self.length_m = l1;
+        let dl = l1 - self.piston.length_m();
+        self.piston.record(l1, v, force, m.effective_mass_kg(q0), dt_s);
         self.hip_rad = self.hip_at(t_s + dt_s).0;
-        if !(self.q.is_finite() && self.qd.is_finite() && self.length_m.is_finite()) {
+        if !(self.q.is_finite() && self.qd.is_finite() && self.piston.length_m().is_finite()) {
             return Err(Error::Diverged { time_s: t_s + dt_s, state: "knee_angle_rad".into(), value: self.q });
         }
         Ok(dl)
@@ -175,7 +147,7 @@ impl Plant for ReducedLegPlant {
             knee_angle_deg: self.q.to_degrees(),
             knee_velocity_deg_s: self.qd.to_degrees(),
             hip_angle_deg: self.hip_rad.to_degrees(),
-            cylinder_length_m: self.length_m,
+            cylinder_length_m: self.piston.length_m(),
             loop_closure_gap_m: 0.0,
             moment_arm_m: self.model.cylinder(self.q).1,
         })
