@@ -2,7 +2,9 @@
 //! hydraulics + ARBFNN-FDO-ZNN, the embedded default scenario), the same on the reduced engine,
 //! and the bench plant (same controller and hydraulics, no mechanics), whose step is the unit
 //! the README's ratios use. Criterion reports throughput in elements/s = simulated steps/s
-//! (1 ms steps).
+//! (1 ms steps). `leg_rapier_step_only` is the floor of the Rapier path: Rapier's own step of the
+//! same leg (same solver settings, 1000 steps of 1 ms) driven by the reference force directly,
+//! with no controller, hydraulics or recording.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use exoleg::record::NullSink;
@@ -21,6 +23,18 @@ fn steps(c: &mut Criterion) {
         g.throughput(Throughput::Elements(s.model.steps as u64));
         g.bench_function(*name, |b| b.iter(|| exoleg::run(&s.model, &mut NullSink).expect("run")));
     }
+    let urdf = exoleg::plant::BUILTIN_URDFS.iter().find(|(n, _)| *n == "builtin:exo_leg").expect("builtin leg").1;
+    let model = exoleg::leg::LegSpec::from_urdf_str(urdf, "knee").expect("builtin leg parses");
+    g.throughput(Throughput::Elements(1000));
+    g.bench_function("leg_rapier_step_only", |b| {
+        b.iter(|| {
+            let mut leg = exoleg::leg::Leg::new(&model, 30f64.to_radians(), 1e-3).expect("leg");
+            for k in 0..1000 {
+                leg.step(200.0 * (4.0 * std::f64::consts::PI * k as f64 * 1e-3).sin(), None);
+            }
+            leg.knee_angle_rad()
+        })
+    });
     g.finish();
 }
 
