@@ -2,9 +2,10 @@
 //! hydraulics + ARBFNN-FDO-ZNN, the embedded default scenario), the same on the reduced engine,
 //! and the bench plant (same controller and hydraulics, no mechanics), whose step is the unit
 //! the README's ratios use. Criterion reports throughput in elements/s = simulated steps/s
-//! (1 ms steps). `leg_rapier_step_only` is the floor of the Rapier path: Rapier's own step of the
-//! same leg (same solver settings, 1000 steps of 1 ms) driven by the reference force directly,
-//! with no controller, hydraulics or recording.
+//! (1 ms steps). `leg_rapier_step_only` is the floor of the Rapier path: the same leg built and
+//! stepped by `Leg::step` alone (Rapier's step plus our force application and pin readout, same
+//! solver settings, 1000 steps of 1 ms) under the reference force, with no controller,
+//! hydraulics or recording.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use exoleg::record::NullSink;
