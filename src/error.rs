@@ -63,6 +63,20 @@ pub enum Error {
         /// The step the integrator would need (s).
         needed_step_s: f64,
     },
+    /// The controller stopped the run (a plugin's stop status, a non-finite command, a
+    /// callback that failed).
+    #[error("controller `{controller}` stopped the run at t = {time_s:.6} s: {message}")]
+    ControllerStopped {
+        /// Simulated time (s).
+        time_s: f64,
+        /// The controller's kind.
+        controller: String,
+        /// What happened.
+        message: String,
+    },
+    /// The library was used out of order (e.g. a step without the command for its sample).
+    #[error("{0}")]
+    Usage(String),
     /// Output could not be written.
     #[error("{}: cannot write: {message}", path.display())]
     Write {
@@ -96,8 +110,8 @@ impl Error {
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::Input { .. } | Error::Read { .. } => EXIT_BAD_INPUT,
-            Error::Diverged { .. } | Error::Stiff { .. } => EXIT_SIM_FAILED,
-            Error::Write { .. } => EXIT_FAILURE,
+            Error::Diverged { .. } | Error::Stiff { .. } | Error::ControllerStopped { .. } => EXIT_SIM_FAILED,
+            Error::Write { .. } | Error::Usage(_) => EXIT_FAILURE,
             Error::Criteria(_) => EXIT_CRITERIA_FAILED,
         }
     }

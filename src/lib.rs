@@ -18,6 +18,7 @@ pub mod disturbance;
 pub mod error;
 pub mod human;
 pub mod hydraulics;
+pub mod integrator;
 pub mod leg;
 pub mod metrics;
 pub mod output;
@@ -26,12 +27,14 @@ pub mod record;
 pub mod reference;
 pub mod scenario;
 pub mod sensors;
+pub mod session;
 pub mod sim;
 pub mod study;
 
 pub use error::{Error, Result};
 pub use scenario::{ResolvedScenario, Resources, Scenario};
-pub use sim::{run, run_in_memory, Model, Simulation};
+pub use session::{run, run_in_memory, Session};
+pub use sim::{Model, Simulation};
 
 /// Load, validate and resolve a scenario in one call (`None` = the embedded default), with
 /// `--set`-style overrides. Convenient for tests and the library API.

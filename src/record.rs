@@ -91,10 +91,15 @@ pub struct Row {
     pub leg: Option<LegRow>,
     /// Contact columns, with ground contact only.
     pub contact: Option<ContactRow>,
+    /// The controller's logged channels (the first `layout.log.len()` are used).
+    pub log: [f64; MAX_LOGGED],
 }
 
+/// Most channels a controller may log ([`Row::log`]).
+pub const MAX_LOGGED: usize = 16;
+
 /// Which optional column groups a run records (fixed for the whole run).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Layout {
     /// `ref_knee_angle_deg` (gait runs).
     pub knee_reference: bool,
@@ -102,6 +107,8 @@ pub struct Layout {
     pub leg: bool,
     /// The contact columns.
     pub contact: bool,
+    /// The controller's logged channels (columns `log_<name>`, last).
+    pub log: Vec<String>,
 }
 
 /// Names of the always-present columns, with units in their suffixes, in output order.
@@ -150,17 +157,18 @@ pub const CONTACT_COLUMNS: [&str; 8] = [
 
 impl Layout {
     /// Column names in output order.
-    pub fn names(&self) -> Vec<&'static str> {
-        let mut n: Vec<&'static str> = BASE_COLUMNS.to_vec();
+    pub fn names(&self) -> Vec<String> {
+        let mut n: Vec<String> = BASE_COLUMNS.iter().map(|c| c.to_string()).collect();
         if self.knee_reference {
-            n.push("ref_knee_angle_deg");
+            n.push("ref_knee_angle_deg".into());
         }
         if self.leg {
-            n.extend(LEG_COLUMNS);
+            n.extend(LEG_COLUMNS.iter().map(|c| c.to_string()));
         }
         if self.contact {
-            n.extend(CONTACT_COLUMNS);
+            n.extend(CONTACT_COLUMNS.iter().map(|c| c.to_string()));
         }
+        n.extend(self.log.iter().map(|l| format!("log_{l}")));
         n
     }
 }
@@ -223,6 +231,7 @@ impl Row {
                 c.wearer_knee_torque_nm,
             ]);
         }
+        out.extend_from_slice(&self.log[..layout.log.len().min(MAX_LOGGED)]);
     }
 
     /// Knee error actual - desired (deg), when the row has both.
@@ -242,6 +251,15 @@ pub trait RecordSink {
     fn start(&mut self, layout: &Layout) -> Result<()>;
     /// One row, in time order.
     fn row(&mut self, row: &Row) -> Result<()>;
+}
+
+impl<T: RecordSink + ?Sized> RecordSink for &mut T {
+    fn start(&mut self, layout: &Layout) -> Result<()> {
+        (**self).start(layout)
+    }
+    fn row(&mut self, row: &Row) -> Result<()> {
+        (**self).row(row)
+    }
 }
 
 /// Several sinks fed with the same rows, in order.
@@ -273,7 +291,7 @@ impl MemoryRecord {
     }
 
     /// The columns by name, in output order (what `timeseries.csv` holds).
-    pub fn columns(&self) -> Vec<(&'static str, Vec<f64>)> {
+    pub fn columns(&self) -> Vec<(String, Vec<f64>)> {
         let names = self.layout.names();
         let mut cols: Vec<Vec<f64>> = names.iter().map(|_| Vec::with_capacity(self.rows.len())).collect();
         let mut buf = Vec::with_capacity(names.len());
@@ -290,7 +308,7 @@ impl MemoryRecord {
 
 impl RecordSink for MemoryRecord {
     fn start(&mut self, layout: &Layout) -> Result<()> {
-        self.layout = *layout;
+        self.layout = layout.clone();
         Ok(())
     }
     fn row(&mut self, row: &Row) -> Result<()> {

@@ -20,7 +20,7 @@
 //! fixed-time observer on the estimated q (its cubic gain capped at 300 1/s), for comparison.
 
 use super::discretize::{kalman_gain, SampledLti as SampledModel};
-use super::{ControlOutput, DiscreteController, Fdo, NominalModel, SampleInput, ValveLimit};
+use super::{ControlOutput, ControlStop, DiscreteController, Fdo, NominalModel, SampleInput, ValveLimit};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
@@ -177,6 +177,11 @@ impl DtZnn {
         })
     }
 
+    /// The ZNN design parameter gamma (1/s).
+    pub fn gamma(&self) -> f64 {
+        self.s.gamma
+    }
+
     /// Start: the state estimate from the first reading, the reference state consistent with
     /// the reference's rate (`xv_r = (dF_d/dt + n3 F_d + n2 v)/n1`).
     fn start(&mut self, inp: &SampleInput, v: f64) {
@@ -230,11 +235,11 @@ fn capped_estimate(fdo: &Fdo, xi: f64) -> f64 {
 }
 
 impl DiscreteController for DtZnn {
-    fn kind(&self) -> &'static str {
+    fn kind(&self) -> &str {
         "dtznn"
     }
 
-    fn update(&mut self, inp: &SampleInput) -> ControlOutput {
+    fn update(&mut self, inp: &SampleInput) -> Result<ControlOutput, ControlStop> {
         let h = self.s.period_s;
         let d = self.s.delay_samples as f64;
         // The piston velocity reading is d samples old; extrapolate it linearly.
@@ -266,7 +271,7 @@ impl DiscreteController for DtZnn {
         self.prior = Some(self.model.step(&self.delayed, oldest, v, slope));
         // The lumped disturbance on dx2/dt the model estimates: D (+ r2 with the resonator).
         let d_hat = self.estimate[3] + if self.n == 6 { self.estimate[5] } else { 0.0 };
-        ControlOutput { disturbance_estimate_n_per_s2: d_hat, rbf_output_n_per_s2: 0.0, ..u }
+        Ok(ControlOutput { disturbance_estimate_n_per_s2: d_hat, rbf_output_n_per_s2: 0.0, ..u })
     }
 
     fn first_non_finite(&self) -> Option<(String, f64)> {

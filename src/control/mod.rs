@@ -1,23 +1,30 @@
-//! Force controllers (MODEL.md section 4) behind one trait.
+//! Force controllers (MODEL.md section 4) and their registry.
 //!
 //! A controller sees only [`Measurement`]s (what sensors give on hardware) and its own
 //! nominal model of the hydraulics ([`crate::hydraulics::Coefficients`] computed from the
 //! parameters it *assumes*, which may differ from the plant's). It never reads plant internals.
 //!
-//! Every controller is written as a continuous-time block in the style of Drake:
-//! [`Controller::output`] is a pure function `u = h(t, r, y, s)` of its state `s`, and
-//! [`Controller::derivatives`] writes `ds/dt = f(t, r, y, s, u)`. The co-simulation loop
-//! either integrates `s` together with the plant at every solver stage (continuous mode,
-//! as the paper's Simulink model did) or updates it once per sample period with forward
-//! Euler and holds `u` (sampled mode, as firmware does).
+//! Two contracts ([`interface`]): a continuous-time block [`Controller`] in the style of
+//! Drake (`u = h(t, r, y, s)` and `ds/dt = f(t, r, y, s, u)`, integrated with the plant at
+//! every solver stage, as the paper's Simulink model did, or advanced once per sample and
+//! held by [`Sampled`]), and the sampled [`DiscreteController`] every firmware-style
+//! controller implements: `dtznn`, a C plugin ([`plugin`]), any controller from outside the
+//! crate.
+//!
+//! This file is the registry: the kinds of `controller.kind`, the raw `[controller]` section,
+//! and the resolved [`ControllerSetup`] (one tagged value per kind, built into a controller
+//! when a run starts). A new kind is its own file plus an entry here (and its docs).
 
 mod arbfnn;
 mod discretize;
 mod dtznn;
 mod erl_smc;
 mod fdo;
+mod interface;
 mod knee_pd;
+mod open_loop;
 mod params;
+pub mod plugin;
 mod sampled;
 mod znn;
 
@@ -26,133 +33,17 @@ pub use discretize::*;
 pub use dtznn::*;
 pub use erl_smc::*;
 pub use fdo::*;
+pub use interface::*;
 pub use knee_pd::*;
+pub use open_loop::*;
 pub use params::*;
+pub use plugin::{PluginLibrary, PluginParams};
 pub use sampled::*;
 pub use znn::*;
 
-use crate::hydraulics::Coefficients;
-use crate::reference::RefSample;
+use crate::sensors::{ChannelId, SensorParams};
 use serde::{Deserialize, Serialize};
-
-/// Largest controller state any controller here needs (ARBFNN-FDO-ZNN: z plus 7 weights).
-pub const MAX_CONTROLLER_STATES: usize = 8;
-
-/// What the controller reads from the sensors at one instant.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
-pub struct Measurement {
-    /// Load force x1 = F_L from the load cell (N).
-    pub force_n: f64,
-    /// x2 = dF_L/dt (N/s): ideal derivative (continuous) or filtered difference (sampled).
-    pub force_rate_n_per_s: f64,
-    /// Spool position x3 = x_v from the valve LVDT (m).
-    pub spool_m: f64,
-    /// Piston position x_c (m).
-    pub piston_m: f64,
-    /// Piston velocity xc_dot (m/s).
-    pub piston_velocity_m_s: f64,
-    /// Piston acceleration xc_ddot (m/s^2).
-    pub piston_accel_m_s2: f64,
-    /// Knee angle (rad) from the joint encoder (0 on the bench).
-    pub knee_rad: f64,
-    /// Knee angular rate (rad/s): exact (continuous) or a filtered difference (sampled).
-    pub knee_rate_rad_s: f64,
-}
-
-/// What a controller outputs besides the command, for logging.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct ControlOutput {
-    /// Valve command u.
-    pub valve_command: f64,
-    /// The controller's estimate of the lumped disturbance on dx2/dt (N/s^2):
-    /// `g_hat + D_hat` for ARBFNN-FDO-ZNN, 0 for controllers without an estimator.
-    pub disturbance_estimate_n_per_s2: f64,
-    /// The RBF network's part of it, `g_hat` (N/s^2).
-    pub rbf_output_n_per_s2: f64,
-    /// True when the command was clipped by the valve limit: controllers stop adapting
-    /// (conditional integration, the anti-windup of the RBF weights).
-    pub saturated: bool,
-}
-
-/// A force controller. See the module doc for the evaluation contract.
-pub trait Controller: Send + Sync {
-    /// Short name, as in the scenario's `controller.kind`.
-    fn kind(&self) -> &'static str;
-    /// Names of the internal states, in order (used in divergence reports and CSV headers).
-    fn state_names(&self) -> Vec<String>;
-    /// Number of internal states (<= [`MAX_CONTROLLER_STATES`]); called at every stage, so a
-    /// controller with states should give it without building the names.
-    fn state_len(&self) -> usize {
-        self.state_names().len()
-    }
-    /// Initial internal state from the first measurement.
-    fn init(&self, y: &Measurement, r: &RefSample, s: &mut [f64]);
-    /// Control output at time `t_s` (pure).
-    fn output(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64]) -> ControlOutput;
-    /// Time derivative of the internal state (pure). `u` is the output just computed.
-    fn derivatives(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]);
-    /// [`Self::output`] clipped by `limit`, then [`Self::derivatives`] with it: one integrator
-    /// stage. A controller whose output and derivatives share terms computes them once here;
-    /// the result must equal the two calls'.
-    fn output_and_derivatives(
-        &self,
-        t_s: f64,
-        r: &RefSample,
-        y: &Measurement,
-        s: &[f64],
-        limit: ValveLimit,
-        ds: &mut [f64],
-    ) -> ControlOutput {
-        let o = limit.apply(self.output(t_s, r, y, s));
-        self.derivatives(t_s, r, y, s, &o, ds);
-        o
-    }
-    /// Largest local rate (1/s) of the internal state's own dynamics at force rate
-    /// `force_rate_n_per_s` (N/s): the loop substeps the continuous controller when it would
-    /// outrun the integrator. Default 0 (not stiff).
-    fn stiffness_per_s(&self, _force_rate_n_per_s: f64, _s: &[f64]) -> f64 {
-        0.0
-    }
-
-    /// Sampled mode: advance the internal state over one sample period `ts_s` after the
-    /// output `u` was computed from the sample. Default: forward Euler on [`Self::derivatives`],
-    /// which is what simple firmware does.
-    fn discrete_update(&self, t_s: f64, ts_s: f64, r: &RefSample, y: &Measurement, s: &mut [f64], u: &ControlOutput) {
-        let mut ds = [0.0; MAX_CONTROLLER_STATES];
-        let n = s.len();
-        self.derivatives(t_s, r, y, s, u, &mut ds[..n]);
-        for (x, d) in s.iter_mut().zip(&ds[..n]) {
-            *x += ts_s * d;
-        }
-    }
-}
-
-/// The controller's nominal model: the parts of the paper's Eq. 5 it inverts.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct NominalModel {
-    /// Nominal coefficients n1..n3, tau, k_s.
-    pub c: Coefficients,
-}
-
-impl NominalModel {
-    /// Nominal spool rate dx3/dt = (k_s*u - x3)/tau (m/s) for command `u` at spool `x3`.
-    pub fn spool_rate(&self, u: f64, spool_m: f64) -> f64 {
-        (self.c.k_s * u - spool_m) / self.c.tau_s
-    }
-
-    /// Nominal dx2/dt without disturbance: n1*dx3/dt - n3*x2 - n2*xc_ddot (N/s^2).
-    pub fn force_accel(&self, u: f64, y: &Measurement) -> f64 {
-        self.c.n1 * self.spool_rate(u, y.spool_m) - self.c.n3 * y.force_rate_n_per_s - self.c.n2 * y.piston_accel_m_s2
-    }
-
-    /// The valve command that makes the nominal dx2/dt equal `accel_wanted` (N/s^2):
-    /// `u = tau/(n1*k_s) * [accel_wanted + n3*x2 + n2*xc_ddot + n1*x3/tau]`.
-    pub fn invert(&self, accel_wanted: f64, y: &Measurement) -> f64 {
-        let c = &self.c;
-        c.tau_s / (c.n1 * c.k_s)
-            * (accel_wanted + c.n3 * y.force_rate_n_per_s + c.n2 * y.piston_accel_m_s2 + c.n1 * y.spool_m / c.tau_s)
-    }
-}
+use std::sync::Arc;
 
 /// Which controller a scenario uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -170,6 +61,8 @@ pub enum ControllerKind {
     /// Discrete-time ZNN for firmware (sampled mode only): exact ZOH model, Kalman ESO with
     /// delay compensation, one-step reference preview (see [`DtZnn`]).
     Dtznn,
+    /// A controller in a C shared library (sampled mode only; see [`plugin`]).
+    Plugin,
 }
 
 impl ControllerKind {
@@ -181,41 +74,198 @@ impl ControllerKind {
             ControllerKind::ErlSmc => "erl_smc",
             ControllerKind::OpenLoop => "open_loop",
             ControllerKind::Dtznn => "dtznn",
+            ControllerKind::Plugin => "plugin",
+        }
+    }
+
+    /// True for the kinds that only run sampled (`controller.sample_period_s > 0`).
+    pub fn sampled_only(&self) -> bool {
+        matches!(self, ControllerKind::Dtznn | ControllerKind::Plugin)
+    }
+}
+
+/// `[controller]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControllerParams {
+    /// `znn`, `arbfnn_fdo_znn` (default), `erl_smc`, `open_loop`, or the sampled-only `dtznn`
+    /// and `plugin` (a C shared library, `[controller.plugin]`).
+    pub kind: ControllerKind,
+    /// ZNN design parameter gamma (1/s). Default 100. > 0.
+    pub gamma: f64,
+    /// ERL-SMC reaching gain k (1/s). Default 100. > 0.
+    pub k: f64,
+    /// ERL-SMC surface slope delta (1/s). Default 15. > 0.
+    pub delta: f64,
+    /// ERL-SMC switching gain zeta (N/s^2). Default 10. >= 0.
+    pub zeta: f64,
+    /// `open_loop`: the constant valve command u (dimensionless; k_s*u is the commanded spool
+    /// position in m). Default 0.
+    pub open_loop_command: f64,
+    /// Controller sample period (s); 0 = continuous (evaluated at every solver stage).
+    /// Otherwise a whole multiple of `sim.dt_s`. Default 0.
+    pub sample_period_s: f64,
+    /// `dtznn`: the delay (samples) the controller assumes in its readings. Default: the
+    /// sensors' `sensors.delay_samples`.
+    pub delay_samples: Option<usize>,
+    /// `dtznn`: internal model of a known periodic reference at this frequency (Hz) in the
+    /// disturbance model (two more states); 0 = off. Default 0.
+    pub resonator_hz: f64,
+    /// RBF network.
+    pub rbf: RbfParams,
+    /// Disturbance observer: the paper's FDO (`gain`, `exponent`) and dtznn's estimator
+    /// (`kind`, `process_noise`). `controller.observer = "fdo"` sets the kind alone.
+    #[serde(deserialize_with = "fdo::observer_serde::deserialize")]
+    pub observer: ObserverParams,
+    /// The model the controller assumes.
+    pub nominal: NominalParams,
+    /// The leg the controller's gait cascade assumes (its inverse dynamics and the outer
+    /// loop's moment arm).
+    pub nominal_leg: NominalLeg,
+    /// `plugin`: the shared library and its parameters.
+    #[serde(skip_serializing_if = "PluginParams::is_unset")]
+    pub plugin: PluginParams,
+}
+
+impl Default for ControllerParams {
+    fn default() -> Self {
+        Self {
+            kind: ControllerKind::ArbfnnFdoZnn,
+            gamma: 100.0,
+            k: 100.0,
+            delta: 15.0,
+            zeta: 10.0,
+            open_loop_command: 0.0,
+            sample_period_s: 0.0,
+            delay_samples: None,
+            resonator_hz: 0.0,
+            rbf: RbfParams::default(),
+            observer: ObserverParams::default(),
+            nominal: NominalParams::default(),
+            nominal_leg: NominalLeg::default(),
+            plugin: PluginParams::default(),
         }
     }
 }
 
-/// Build the continuous-time controller a scenario asks for, with its nominal model.
-pub fn build(p: &ControllerParams, model: NominalModel) -> Box<dyn Controller> {
-    match p.kind {
-        ControllerKind::Znn => Box::new(Znn::new(model, p.gamma, None)),
-        ControllerKind::ArbfnnFdoZnn => {
-            Box::new(Znn::new(model, p.gamma, Some((RbfNetwork::new(p.rbf.clone()), Fdo::new(p.observer.clone())))))
+/// The controller of a run, resolved: one tagged value per kind with what building it needs.
+#[derive(Debug, Clone)]
+pub enum ControllerSetup {
+    /// Plain ZNN with design parameter gamma (1/s).
+    Znn {
+        /// gamma (1/s).
+        gamma: f64,
+    },
+    /// ARBFNN-FDO-ZNN.
+    ArbfnnFdoZnn {
+        /// gamma (1/s).
+        gamma: f64,
+        /// The RBF network.
+        rbf: RbfParams,
+        /// The observer.
+        observer: ObserverParams,
+    },
+    /// ERL-SMC with reaching gain k (1/s), surface slope delta (1/s), switching gain zeta
+    /// (N/s^2).
+    ErlSmc {
+        /// k (1/s).
+        k: f64,
+        /// delta (1/s).
+        delta: f64,
+        /// zeta (N/s^2).
+        zeta: f64,
+    },
+    /// A constant valve command.
+    OpenLoop {
+        /// u (dimensionless).
+        valve_command: f64,
+    },
+    /// dtznn, designed (gains computed once at resolve; every run clones it).
+    Dtznn(Box<DtZnn>),
+    /// A C plugin: the loaded library and the parameters of its instances.
+    Plugin(Arc<plugin::PluginSetup>),
+}
+
+/// What resolving a controller needs besides its section.
+pub struct SetupContext<'a> {
+    /// The controller's nominal model.
+    pub nominal: NominalModel,
+    /// The sensors (dtznn's Kalman design reads their noise).
+    pub sensors: &'a SensorParams,
+    /// The valve command limit.
+    pub limit: ValveLimit,
+    /// The loaded plugin library (`controller.kind = "plugin"`).
+    pub plugin: Option<Arc<PluginLibrary>>,
+    /// The run's seed (passed to plugins).
+    pub seed: u64,
+}
+
+impl ControllerSetup {
+    /// Resolve `[controller]`: the setup of its kind. Errors name the key and the problem.
+    pub fn resolve(p: &ControllerParams, cx: SetupContext) -> Result<Self, (String, String)> {
+        Ok(match p.kind {
+            ControllerKind::Znn => ControllerSetup::Znn { gamma: p.gamma },
+            ControllerKind::ArbfnnFdoZnn => {
+                ControllerSetup::ArbfnnFdoZnn { gamma: p.gamma, rbf: p.rbf.clone(), observer: p.observer.clone() }
+            }
+            ControllerKind::ErlSmc => ControllerSetup::ErlSmc { k: p.k, delta: p.delta, zeta: p.zeta },
+            ControllerKind::OpenLoop => ControllerSetup::OpenLoop { valve_command: p.open_loop_command },
+            ControllerKind::Dtznn => {
+                let sensors = SensorModel {
+                    force_sd_n: cx.sensors.reading_sd(ChannelId::Force).unwrap_or(0.0),
+                    spool_sd_m: cx.sensors.reading_sd(ChannelId::Spool),
+                };
+                let settings = DtZnnSettings {
+                    gamma: p.gamma,
+                    period_s: p.sample_period_s,
+                    delay_samples: p.delay_samples.unwrap_or(cx.sensors.delay_samples),
+                    process_noise: p.observer.process_noise,
+                    resonator_hz: p.resonator_hz,
+                    estimator: p.observer.kind,
+                    sensors,
+                    limit: cx.limit,
+                };
+                let d = DtZnn::new(cx.nominal, settings)
+                    .map_err(|m| ("controller".to_string(), format!("dtznn design: {m}")))?;
+                ControllerSetup::Dtznn(Box::new(d))
+            }
+            ControllerKind::Plugin => {
+                let lib =
+                    cx.plugin.ok_or_else(|| ("controller.plugin.library".to_string(), "not loaded".to_string()))?;
+                let info = plugin::HostInfo {
+                    period_s: p.sample_period_s,
+                    limit: cx.limit,
+                    nominal: cx.nominal,
+                    seed: cx.seed,
+                };
+                ControllerSetup::Plugin(Arc::new(plugin::PluginSetup::new(lib, &p.plugin, info)?))
+            }
+        })
+    }
+
+    /// The continuous-time controller of this setup with its nominal model (`dtznn` and
+    /// plugins are sampled only: validation refuses them in continuous mode, and here they
+    /// are the plain ZNN law dtznn derives from).
+    pub fn continuous(&self, nominal: NominalModel) -> Box<dyn Controller> {
+        match self {
+            ControllerSetup::Znn { gamma } => Box::new(Znn::new(nominal, *gamma, None)),
+            ControllerSetup::ArbfnnFdoZnn { gamma, rbf, observer } => {
+                Box::new(Znn::new(nominal, *gamma, Some((RbfNetwork::new(rbf.clone()), Fdo::new(observer.clone())))))
+            }
+            ControllerSetup::ErlSmc { k, delta, zeta } => Box::new(ErlSmc::new(nominal, *k, *delta, *zeta)),
+            ControllerSetup::OpenLoop { valve_command } => Box::new(OpenLoop { valve_command: *valve_command }),
+            ControllerSetup::Dtznn(d) => Box::new(Znn::new(nominal, d.gamma(), None)),
+            ControllerSetup::Plugin(_) => Box::new(OpenLoop { valve_command: 0.0 }),
         }
-        ControllerKind::ErlSmc => Box::new(ErlSmc::new(model, p.k, p.delta, p.zeta)),
-        ControllerKind::OpenLoop => Box::new(OpenLoop { valve_command: p.open_loop_command }),
-        // dtznn is discrete only (validation refuses it in continuous mode); as a continuous
-        // block it is the plain ZNN law it is derived from.
-        ControllerKind::Dtznn => Box::new(Znn::new(model, p.gamma, None)),
     }
-}
 
-/// No feedback: a constant valve command. No internal state.
-pub struct OpenLoop {
-    /// The valve command u (dimensionless; k_s*u is the commanded spool position in m).
-    pub valve_command: f64,
-}
-
-impl Controller for OpenLoop {
-    fn kind(&self) -> &'static str {
-        "open_loop"
+    /// The sampled controller of this setup: the firmware controllers themselves, a plugin
+    /// instance, or a continuous one run as firmware ([`Sampled`]) within `limit`.
+    pub fn discrete(&self, nominal: NominalModel, limit: ValveLimit) -> Result<Box<dyn DiscreteController>, String> {
+        Ok(match self {
+            ControllerSetup::Dtznn(d) => Box::new((**d).clone()),
+            ControllerSetup::Plugin(p) => Box::new(p.instance()?),
+            _ => Box::new(Sampled::new(self.continuous(nominal), limit)),
+        })
     }
-    fn state_names(&self) -> Vec<String> {
-        Vec::new()
-    }
-    fn init(&self, _y: &Measurement, _r: &RefSample, _s: &mut [f64]) {}
-    fn output(&self, _t: f64, _r: &RefSample, _y: &Measurement, _s: &[f64]) -> ControlOutput {
-        ControlOutput { valve_command: self.valve_command, ..Default::default() }
-    }
-    fn derivatives(&self, _t: f64, _r: &RefSample, _y: &Measurement, _s: &[f64], _u: &ControlOutput, _ds: &mut [f64]) {}
 }

@@ -1,6 +1,6 @@
-//! The controller's scenario section: kind, gains, sampling, and the model it assumes.
+//! The model the controller assumes: its hydraulics (`[controller.nominal]`) and its leg
+//! (`[controller.nominal_leg]`).
 
-use super::{ControllerKind, ObserverParams, RbfParams};
 use crate::hydraulics::HydraulicParams;
 use serde::{Deserialize, Serialize};
 
@@ -51,45 +51,6 @@ impl NominalParams {
     }
 }
 
-/// `[controller]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ControllerParams {
-    /// `znn`, `arbfnn_fdo_znn` (default), `erl_smc`, `open_loop` or `dtznn` (sampled only).
-    pub kind: ControllerKind,
-    /// ZNN design parameter gamma (1/s). Default 100. > 0.
-    pub gamma: f64,
-    /// ERL-SMC reaching gain k (1/s). Default 100. > 0.
-    pub k: f64,
-    /// ERL-SMC surface slope delta (1/s). Default 15. > 0.
-    pub delta: f64,
-    /// ERL-SMC switching gain zeta (N/s^2). Default 10. >= 0.
-    pub zeta: f64,
-    /// `open_loop`: the constant valve command u (dimensionless; k_s*u is the commanded spool
-    /// position in m). Default 0.
-    pub open_loop_command: f64,
-    /// Controller sample period (s); 0 = continuous (evaluated at every solver stage).
-    /// Otherwise a whole multiple of `sim.dt_s`. Default 0.
-    pub sample_period_s: f64,
-    /// `dtznn`: the delay (samples) the controller assumes in its readings. Default: the
-    /// sensors' `sensors.delay_samples`.
-    pub delay_samples: Option<usize>,
-    /// `dtznn`: internal model of a known periodic reference at this frequency (Hz) in the
-    /// disturbance model (two more states); 0 = off. Default 0.
-    pub resonator_hz: f64,
-    /// RBF network.
-    pub rbf: RbfParams,
-    /// Disturbance observer: the paper's FDO (`gain`, `exponent`) and dtznn's estimator
-    /// (`kind`, `process_noise`). `controller.observer = "fdo"` sets the kind alone.
-    #[serde(deserialize_with = "super::fdo::observer_serde::deserialize")]
-    pub observer: ObserverParams,
-    /// The model the controller assumes.
-    pub nominal: NominalParams,
-    /// The leg the controller's gait cascade assumes (its inverse dynamics and the outer
-    /// loop's moment arm).
-    pub nominal_leg: NominalLeg,
-}
-
 /// `[controller.nominal_leg]`: the leg model the controller believes in. Defaults: the
 /// plant's (`leg.urdf`, `leg.mass_scale`).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -101,24 +62,4 @@ pub struct NominalLeg {
     pub mass_scale: Option<f64>,
     /// SHA-256 of the controller's URDF; filled in by every run that names one.
     pub urdf_sha256: Option<String>,
-}
-
-impl Default for ControllerParams {
-    fn default() -> Self {
-        Self {
-            kind: ControllerKind::ArbfnnFdoZnn,
-            gamma: 100.0,
-            k: 100.0,
-            delta: 15.0,
-            zeta: 10.0,
-            open_loop_command: 0.0,
-            sample_period_s: 0.0,
-            delay_samples: None,
-            resonator_hz: 0.0,
-            rbf: RbfParams::default(),
-            observer: ObserverParams::default(),
-            nominal: NominalParams::default(),
-            nominal_leg: NominalLeg::default(),
-        }
-    }
 }

@@ -155,7 +155,16 @@ impl Controller for Znn {
     /// differentiated load-cell signal reaches within milliseconds at 1 kHz. So the observer
     /// state is advanced with backward Euler (solved by Newton's method; psi is monotonic, so
     /// the solution is unique), as careful firmware would; the weights use the new Xi.
-    fn discrete_update(&self, _t_s: f64, ts_s: f64, r: &RefSample, y: &Measurement, s: &mut [f64], u: &ControlOutput) {
+    fn discrete_update(
+        &self,
+        _t_s: f64,
+        ts_s: f64,
+        r: &RefSample,
+        y: &Measurement,
+        s: &mut [f64],
+        u: &ControlOutput,
+        _scratch: &mut [f64],
+    ) {
         let Some((rbf, fdo)) = &self.compensation else { return };
         let x2 = y.force_rate_n_per_s;
         let a = self.model.force_accel(u.valve_command, y) + u.rbf_output_n_per_s2;
@@ -229,7 +238,7 @@ mod tests {
         s[0] -= 60.0; // Xi = 60: forward Euler at 1 ms would take ts*3*L*Xi^2 = 10.8 > 2 (unstable).
         let u = c.output(0.0, &r, &y, &s);
         let (ts, z0) = (1e-3, s[0]);
-        c.discrete_update(0.0, ts, &r, &y, &mut s, &u);
+        c.discrete_update(0.0, ts, &r, &y, &mut s, &u, &mut [0.0; 8]);
         let a = model.force_accel(u.valve_command, &y) + u.rbf_output_n_per_s2;
         let residual = s[0] - z0 - ts * (a + fdo.estimate(y.force_rate_n_per_s - s[0]));
         assert!(residual.abs() < 1e-9 * (1.0 + s[0].abs()), "residual {residual}");

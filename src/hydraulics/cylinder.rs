@@ -34,6 +34,17 @@ pub struct PistonKinematics {
     pub velocity_m_s: f64,
 }
 
+/// The force rates of one stage ([`Cylinder::rates`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ForceRates {
+    /// dF_L/dt of the model (N/s), past a force bound too.
+    pub raw_n_per_s: f64,
+    /// What the load cell sees (N/s): 0 where a supply-pressure bound holds F_L.
+    pub load_cell_n_per_s: f64,
+    /// Mean chamber pressure rate (Pa/s; two-chamber model, else 0).
+    pub mean_pressure_pa_s: f64,
+}
+
 /// Which plant integrates the force channel.
 #[derive(Debug, Clone, PartialEq)]
 enum Chambers {
@@ -104,9 +115,18 @@ impl Cylinder {
         h.spool_m = (rate_n_per_s + c.n2 * piston_velocity_m_s + c.n3 * h.force_n - c.n4) / c.n1;
     }
 
+    /// The cylinder at one integrator stage, before the valve command is known: the force rates
+    /// the load cell and the controller see. `inp` carries the piston velocity and the
+    /// disturbances; its `valve_command` is not used. Then [`Self::derivatives`] with the
+    /// command.
+    pub fn rates(&self, h: &HydraulicState, piston: &PistonKinematics, inp: &ForceChannelInput) -> ForceRates {
+        let (raw, mean) = self.force_rate(h, piston, inp);
+        ForceRates { raw_n_per_s: raw, load_cell_n_per_s: self.rate_at_bound(h, raw), mean_pressure_pa_s: mean }
+    }
+
     /// dF_L/dt (N/s) and the mean-pressure rate (Pa/s) at a state. `inp` carries the piston
     /// velocity and the force-rate disturbance; `u` is not needed.
-    pub fn force_rate(&self, h: &HydraulicState, piston: &PistonKinematics, inp: &ForceChannelInput) -> (f64, f64) {
+    fn force_rate(&self, h: &HydraulicState, piston: &PistonKinematics, inp: &ForceChannelInput) -> (f64, f64) {
         match &self.chambers {
             Chambers::Linear => (self.coeffs.force_rate(&h.channel(), inp), 0.0),
             Chambers::Two(tc) => {
@@ -121,7 +141,7 @@ impl Cylinder {
 
     /// The load cell's rate: held at a supply-pressure bound (linear model) F_L does not move,
     /// so a rate pushing past the bound reads 0.
-    pub fn rate_at_bound(&self, h: &HydraulicState, rate_n_per_s: f64) -> f64 {
+    fn rate_at_bound(&self, h: &HydraulicState, rate_n_per_s: f64) -> f64 {
         let (lo, hi) = self.force_bounds_n;
         let out = (h.force_n >= hi && rate_n_per_s > 0.0) || (h.force_n <= lo && rate_n_per_s < 0.0);
         if matches!(self.chambers, Chambers::Linear) && out {
@@ -132,21 +152,15 @@ impl Cylinder {
     }
 
     /// Time derivative of the hydraulic state, with the hard stops applied: the spool does not
-    /// move past its travel limit, F_L not past its bounds (linear model). `force_rate_n_per_s`
-    /// comes from [`Self::force_rate`] and [`Self::rate_at_bound`].
-    pub fn derivatives(
-        &self,
-        h: &HydraulicState,
-        inp: &ForceChannelInput,
-        force_rate_n_per_s: f64,
-        mean_pressure_rate_pa_s: f64,
-    ) -> HydraulicState {
+    /// move past its travel limit, F_L not past its bounds (linear model). `rates` come from
+    /// [`Self::rates`] at the same state.
+    pub fn derivatives(&self, h: &HydraulicState, inp: &ForceChannelInput, rates: &ForceRates) -> HydraulicState {
         let dh = self.coeffs.derivatives(&h.channel(), inp);
         let mut d = HydraulicState {
-            force_n: force_rate_n_per_s,
+            force_n: rates.load_cell_n_per_s,
             spool_m: dh.spool_m,
             accel_dist_n_per_s: dh.accel_dist_n_per_s,
-            mean_pressure_pa: mean_pressure_rate_pa_s,
+            mean_pressure_pa: rates.mean_pressure_pa_s,
         };
         let sl = self.spool_limit_m;
         if sl > 0.0 && h.spool_m.abs() >= sl && d.spool_m * h.spool_m > 0.0 {
@@ -214,8 +228,18 @@ impl Cylinder {
         }
     }
 
+    /// The end of a step: the stroke the force ODE did not see (`missed`: the piston position
+    /// `xc_m` (m) after the step and the missed stroke (m)) acts on the oil spring, then the
+    /// states that sit against hard stops are held there.
+    pub fn end_step(&self, h: &mut HydraulicState, missed: Option<(f64, f64)>) {
+        if let Some((xc_m, dx_m)) = missed {
+            self.apply_stroke(h, xc_m, dx_m);
+        }
+        self.clamp(h);
+    }
+
     /// Hold the states that sit against hard stops after a step.
-    pub fn clamp(&self, h: &mut HydraulicState) {
+    fn clamp(&self, h: &mut HydraulicState) {
         let sl = self.spool_limit_m;
         if sl > 0.0 {
             h.spool_m = h.spool_m.clamp(-sl, sl);
@@ -232,7 +256,7 @@ impl Cylinder {
 
     /// Apply a piston stroke `dx_m` at position `xc_m` that the force ODE did not see: the oil
     /// spring acts on the geometric change of cylinder length.
-    pub fn apply_stroke(&self, h: &mut HydraulicState, xc_m: f64, dx_m: f64) {
+    fn apply_stroke(&self, h: &mut HydraulicState, xc_m: f64, dx_m: f64) {
         match &self.chambers {
             Chambers::Linear => h.force_n -= self.coeffs.n2 * dx_m,
             Chambers::Two(tc) => {
@@ -262,7 +286,8 @@ mod tests {
         assert_eq!(c.rate_at_bound(&at_hi, -500.0), -500.0);
         let at_lo = HydraulicState { force_n: lo, ..Default::default() };
         assert_eq!(c.rate_at_bound(&at_lo, -500.0), 0.0);
-        assert_eq!(c.derivatives(&at_hi, &ForceChannelInput::default(), 500.0, 0.0).force_n, 0.0);
+        let rates = ForceRates { raw_n_per_s: 500.0, load_cell_n_per_s: 500.0, mean_pressure_pa_s: 0.0 };
+        assert_eq!(c.derivatives(&at_hi, &ForceChannelInput::default(), &rates).force_n, 0.0);
         assert!(c.at_limit(&at_hi) && c.at_limit(&at_lo));
         // Without the pressure limit nothing is held.
         let free = Cylinder::new(&h, false, 0.0);

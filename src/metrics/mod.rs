@@ -127,9 +127,21 @@ pub struct Summary {
     /// The leg's mechanics engine (`rapier` or `reduced`; absent on the bench).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub engine: Option<String>,
+    /// Samples a controller flagged with a warning (a C plugin's warning status), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller_warnings: Option<ControllerWarnings>,
     /// Ground-contact figures (runs with `ground.enabled`), flattened into the summary.
     #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
     pub contact: Option<ContactSummary>,
+}
+
+/// The warnings a sampled controller gave during a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ControllerWarnings {
+    /// Samples with a warning status.
+    pub samples: usize,
+    /// The last warning's message.
+    pub last: String,
 }
 
 fn one() -> usize {
@@ -439,6 +451,7 @@ impl SummaryBuilder {
             wall_time_s,
             steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
             contact: None,
+            controller_warnings: None,
             engine: None,
         }
     }

@@ -53,7 +53,7 @@ impl CsvSink {
 
 impl RecordSink for CsvSink {
     fn start(&mut self, layout: &Layout) -> Result<()> {
-        self.layout = *layout;
+        self.layout = layout.clone();
         let header = layout.names().join(",") + "\n";
         self.w.write_all(header.as_bytes()).map_err(|e| self.werr(e))
     }

@@ -2,6 +2,7 @@
 //! parsed once per process or sweep ([`Resources`]), so every run that shares a file shares
 //! its parsed form and the tables built from it.
 
+use crate::control::PluginLibrary;
 use crate::error::{Error, Result};
 use crate::leg::{LegOptions, LegSpec};
 use crate::plant::{MassTable, BUILTIN_URDFS};
@@ -41,6 +42,18 @@ pub fn read_capped(path: &Path, cap: u64) -> Result<String> {
         return Err(Error::Read { path: path.to_path_buf(), message: format!("more than the {cap} byte limit") });
     }
     Ok(text)
+}
+
+/// SHA-256 of a regular file's bytes (streamed), as lowercase hex.
+fn file_sha256(path: &Path) -> std::result::Result<String, String> {
+    let meta = std::fs::metadata(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(format!("{}: not a regular file", path.display()));
+    }
+    let mut f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut h = Sha256::new();
+    std::io::copy(&mut f, &mut h).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(format!("{:x}", h.finalize()))
 }
 
 /// Find a file a scenario names: an absolute path as is; a relative one next to the scenario
@@ -94,6 +107,7 @@ pub struct Resources {
     reduced: Mutex<HashMap<usize, Arc<crate::leg::ReducedModel>>>,
     gaits: Mutex<HashMap<(String, usize), Arc<GaitCycle>>>,
     cascades: Mutex<HashMap<CascadeKey, Arc<FourierSeries>>>,
+    plugins: Mutex<HashMap<PathBuf, (Arc<PluginLibrary>, String)>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -201,6 +215,27 @@ impl Resources {
         let g = Arc::new(GaitCycle::parse(name, &csv.text, harmonics)?);
         gaits.insert(key, g.clone());
         Ok(g)
+    }
+
+    /// The controller plugin `controller.plugin.library` names, loaded once per path, with the
+    /// library's SHA-256.
+    pub fn plugin(
+        &self,
+        source_name: &str,
+        library: &str,
+        base_dir: Option<&Path>,
+    ) -> Result<(Arc<PluginLibrary>, String)> {
+        const KEY: &str = "controller.plugin.library";
+        let path = resolve_path(source_name, KEY, library, base_dir)?;
+        let mut c = lock(&self.plugins);
+        if let Some(p) = c.get(&path) {
+            return Ok(p.clone());
+        }
+        let sha = file_sha256(&path).map_err(|e| Error::input(source_name, KEY, e))?;
+        let lib = PluginLibrary::load(&path).map_err(|e| Error::input(source_name, KEY, e))?;
+        let entry = (Arc::new(lib), sha);
+        c.insert(path, entry.clone());
+        Ok(entry)
     }
 
     /// A gait inverse-dynamics fit, built once per key with `build`.

@@ -4,7 +4,7 @@
 
 use super::files::{InputText, Resources};
 use super::{ReferenceKind, Scenario, ScenarioFile};
-use crate::control::{ControllerKind, DtZnn, DtZnnSettings, KneePd, NominalModel, SensorModel, ValveLimit};
+use crate::control::{ControllerKind, ControllerSetup, KneePd, NominalModel, SetupContext, ValveLimit};
 use crate::error::{Error, Result};
 use crate::human::HipMode;
 use crate::hydraulics::{Cylinder, FrictionParams};
@@ -461,27 +461,47 @@ fn lowest_sole_z(s: &Scenario, model: &LegSpec, start: &LegStart) -> Result<f64>
     Ok(z0)
 }
 
-/// Design `dtznn` once from the controller's nominal model and what it knows of its sensors.
-fn design_dtznn(s: &Scenario, nominal: NominalModel) -> Result<Option<DtZnn>> {
-    let f = &s.file;
-    if f.controller.kind != ControllerKind::Dtznn {
-        return Ok(None);
+impl Ctx<'_> {
+    /// The controller's setup: its kind's tagged value (dtznn designed, a plugin loaded).
+    fn controller(&mut self, nominal: NominalModel) -> Result<ControllerSetup> {
+        let f = &self.s.file;
+        let p = &f.controller;
+        let plugin = match (p.kind, &p.plugin.library) {
+            (ControllerKind::Plugin, None) => {
+                return Err(Error::input(
+                    self.src(),
+                    "controller.plugin.library",
+                    "`plugin` needs the shared library's path",
+                ))
+            }
+            (ControllerKind::Plugin, Some(lib)) => {
+                let (l, sha) = self.res.plugin(self.src(), lib, self.s.base_dir.as_deref())?;
+                check_hash(
+                    "controller.plugin.library",
+                    &InputText { origin: l.path.display().to_string(), text: Arc::from(""), sha256: sha.clone() },
+                    &p.plugin.library_sha256,
+                    &mut self.warnings,
+                );
+                self.inputs.push(InputRecord {
+                    key: "controller.plugin.library",
+                    origin: l.path.display().to_string(),
+                    sha256: sha.clone(),
+                });
+                self.file.controller.plugin.library = Some(l.path.display().to_string());
+                self.file.controller.plugin.library_sha256 = Some(sha);
+                Some(l)
+            }
+            _ => None,
+        };
+        let cx = SetupContext {
+            nominal,
+            sensors: &f.sensors,
+            limit: ValveLimit(f.actuator.valve_command_limit),
+            plugin,
+            seed: f.seed,
+        };
+        ControllerSetup::resolve(p, cx).map_err(|(key, m)| Error::input(self.src(), key, m))
     }
-    let sensors =
-        SensorModel { force_sd_n: f.sensors.reading_sd(0).unwrap_or(0.0), spool_sd_m: f.sensors.reading_sd(1) };
-    let settings = DtZnnSettings {
-        gamma: f.controller.gamma,
-        period_s: f.controller.sample_period_s,
-        delay_samples: f.controller.delay_samples.unwrap_or(f.sensors.delay_samples),
-        process_noise: f.controller.observer.process_noise,
-        resonator_hz: f.controller.resonator_hz,
-        estimator: f.controller.observer.kind,
-        sensors,
-        limit: ValveLimit(f.actuator.valve_command_limit),
-    };
-    DtZnn::new(nominal, settings)
-        .map(Some)
-        .map_err(|m| Error::input(&s.source_name, "controller", format!("dtznn design: {m}")))
 }
 
 impl Scenario {
@@ -539,16 +559,17 @@ impl Scenario {
             substep_controller: f.sim.substep_controller,
             seed: f.seed,
             sample_every,
+            sample_period_s: f.controller.sample_period_s,
             plant,
             metrics: MetricSettings { band, settle_s: f.metrics.settle_s, stride_s: reference.stride_s() },
             reference,
             knee_pd,
             cylinder: Cylinder::new(&f.hydraulics, f.actuator.pressure_limit, f.actuator.spool_limit_m),
-            controller: f.controller.clone(),
+            controller: cx.controller(nominal)?,
             nominal,
-            dtznn: design_dtznn(self, nominal)?,
             friction: f.friction.clone(),
             actuator: f.actuator.clone(),
+            valve_limit: ValveLimit(f.actuator.valve_command_limit),
             human: f.human.clone(),
             disturbance: f.disturbance.clone(),
             sensors: f.sensors.clone(),

@@ -1,7 +1,6 @@
 //! Validation of a deserialised scenario: finiteness, signs, ranges, consistency.
 
 use super::ScenarioFile;
-use crate::control::ControllerKind;
 use crate::disturbance::{Signal, Term};
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
@@ -207,10 +206,13 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
             ));
         }
     }
-    if ct.kind == ControllerKind::Dtznn && ct.sample_period_s == 0.0 {
+    if ct.kind.sampled_only() && ct.sample_period_s == 0.0 {
         return Err(c.fail(
             "controller.kind",
-            "`dtznn` is a discrete-time (firmware) controller: set controller.sample_period_s > 0",
+            format!(
+                "`{}` is a discrete-time (firmware) controller: set controller.sample_period_s > 0",
+                ct.kind.as_str()
+            ),
         ));
     }
     c.non_negative("controller.resonator_hz", ct.resonator_hz)?;
@@ -251,7 +253,8 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
 /// `[sensors]`, `[actuator]`, `[disturbance]`.
 fn sensors_and_actuator(c: &Check, f: &ScenarioFile) -> Result<()> {
     c.non_negative("sensors.derivative_cutoff_hz", f.sensors.derivative_cutoff_hz)?;
-    for (key, ch) in f.sensors.channels() {
+    for info in crate::sensors::CHANNELS {
+        let (key, ch) = (format!("sensors.{}", info.name), f.sensors.channel(info.id));
         c.non_negative(&format!("{key}.noise_std"), ch.noise_std)?;
         if let Some(r) = ch.range {
             c.positive(&format!("{key}.range"), r)?;
@@ -269,11 +272,11 @@ fn sensors_and_actuator(c: &Check, f: &ScenarioFile) -> Result<()> {
             );
         }
     }
-    if !f.sensors.spool.enabled && f.controller.kind != ControllerKind::Dtznn {
+    if !f.sensors.spool.enabled && !f.controller.kind.sampled_only() {
         return Err(c.fail(
             "sensors.spool.enabled",
             format!(
-                "`{}` reads the spool position; only `dtznn` estimates it without a sensor",
+                "`{}` reads the spool position; only `dtznn` (and a plugin) work without a sensor",
                 f.controller.kind.as_str()
             ),
         ));

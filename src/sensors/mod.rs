@@ -15,7 +15,6 @@
 mod hold;
 pub use hold::*;
 
-use crate::control::Measurement;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -70,11 +69,104 @@ impl Default for ChannelParams {
     }
 }
 
-/// Default full scales of the channels force (N), spool (m), piston (m), knee (rad), piston
-/// velocity (m/s).
-pub const DEFAULT_RANGES: [f64; 5] = [5000.0, 0.02, 0.2, std::f64::consts::PI, 1.0];
-/// Channel names, in the order of [`DEFAULT_RANGES`].
-pub const CHANNELS: [&str; 5] = ["force", "spool", "piston", "knee", "piston_velocity"];
+/// The measured channels, in the order of [`CHANNELS`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ChannelId {
+    /// Load cell (N).
+    Force = 0,
+    /// Valve spool LVDT (m).
+    Spool = 1,
+    /// Piston position (m).
+    Piston = 2,
+    /// Knee angle encoder (rad).
+    Knee = 3,
+    /// Piston velocity sensor (m/s).
+    PistonVelocity = 4,
+}
+
+/// One measured channel: its names, unit and default full scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChannelInfo {
+    /// Which channel.
+    pub id: ChannelId,
+    /// Short name (`sensors.<name>` in scenarios, `<name>` in clip reports).
+    pub name: &'static str,
+    /// The reading's field in [`Measurement`] and in the controller readings.
+    pub reading: &'static str,
+    /// SI unit of the reading.
+    pub unit: &'static str,
+    /// Default full scale: readings are clamped to and quantised over [-range, +range].
+    pub default_range: f64,
+}
+
+/// The measured channels: one table for names, units and full scales.
+pub const CHANNELS: [ChannelInfo; 5] = [
+    ChannelInfo { id: ChannelId::Force, name: "force", reading: "force_n", unit: "N", default_range: 5000.0 },
+    ChannelInfo { id: ChannelId::Spool, name: "spool", reading: "spool_m", unit: "m", default_range: 0.02 },
+    ChannelInfo { id: ChannelId::Piston, name: "piston", reading: "piston_m", unit: "m", default_range: 0.2 },
+    ChannelInfo {
+        id: ChannelId::Knee,
+        name: "knee",
+        reading: "knee_rad",
+        unit: "rad",
+        default_range: std::f64::consts::PI,
+    },
+    ChannelInfo {
+        id: ChannelId::PistonVelocity,
+        name: "piston_velocity",
+        reading: "piston_velocity_m_s",
+        unit: "m/s",
+        default_range: 1.0,
+    },
+];
+
+/// What the controller reads at one instant: ideal signals (continuous mode, and the truth a
+/// sampled chain starts from) or the readings after noise, A/D, delay and differences.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Measurement {
+    /// Load force x1 = F_L from the load cell (N).
+    pub force_n: f64,
+    /// x2 = dF_L/dt (N/s): exact (continuous) or a filtered difference (sampled).
+    pub force_rate_n_per_s: f64,
+    /// Spool position x3 = x_v from the valve LVDT (m); NaN without the sensor.
+    pub spool_m: f64,
+    /// Piston position x_c from its position at t = 0 (m).
+    pub piston_m: f64,
+    /// Piston velocity xc_dot (m/s).
+    pub piston_velocity_m_s: f64,
+    /// Piston acceleration xc_ddot (m/s^2).
+    pub piston_accel_m_s2: f64,
+    /// Knee flexion (rad) from the joint encoder (0 on the bench).
+    pub knee_rad: f64,
+    /// Knee flexion rate (rad/s): exact (continuous) or a filtered difference (sampled).
+    pub knee_rate_rad_s: f64,
+}
+
+impl Measurement {
+    /// The value of a measured channel.
+    pub fn channel(&self, c: ChannelId) -> f64 {
+        match c {
+            ChannelId::Force => self.force_n,
+            ChannelId::Spool => self.spool_m,
+            ChannelId::Piston => self.piston_m,
+            ChannelId::Knee => self.knee_rad,
+            ChannelId::PistonVelocity => self.piston_velocity_m_s,
+        }
+    }
+}
+
+/// Raw A/D counts of one sample, by channel (in [`CHANNELS`] order): the reading is exactly
+/// `counts * lsb` with `lsb = 2 * range / 2^bits`; `None` for a channel without quantisation
+/// (or switched off).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct AdcCounts(pub [Option<i64>; 5]);
+
+impl AdcCounts {
+    /// The counts of one channel.
+    pub fn get(&self, c: ChannelId) -> Option<i64> {
+        self.0[c as usize]
+    }
+}
 
 /// Sensor parameters (scenario section `[sensors]`). Only used in sampled mode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -116,70 +208,40 @@ impl Default for SensorParams {
 impl SensorParams {
     /// True when any effect beyond sampling is configured (noise, quantisation, delay, filter).
     pub fn has_effects(&self) -> bool {
-        let ch = [&self.force, &self.spool, &self.piston, &self.knee, &self.piston_velocity];
         self.preset != SensorPreset::Ideal
             || self.delay_samples > 0
             || self.derivative_cutoff_hz > 0.0
-            || ch.iter().any(|c| c.noise_std > 0.0 || c.bits.unwrap_or(0) > 0 || !c.enabled)
+            || CHANNELS
+                .iter()
+                .map(|c| self.channel(c.id))
+                .any(|c| c.noise_std > 0.0 || c.bits.unwrap_or(0) > 0 || !c.enabled)
     }
 
-    /// The channels with their dotted key prefix (for validation messages), in the order of
-    /// [`CHANNELS`].
-    pub fn channels(&self) -> [(&'static str, &ChannelParams); 5] {
-        [
-            ("sensors.force", &self.force),
-            ("sensors.spool", &self.spool),
-            ("sensors.piston", &self.piston),
-            ("sensors.knee", &self.knee),
-            ("sensors.piston_velocity", &self.piston_velocity),
-        ]
+    /// The settings of one channel.
+    pub fn channel(&self, c: ChannelId) -> &ChannelParams {
+        match c {
+            ChannelId::Force => &self.force,
+            ChannelId::Spool => &self.spool,
+            ChannelId::Piston => &self.piston,
+            ChannelId::Knee => &self.knee,
+            ChannelId::PistonVelocity => &self.piston_velocity,
+        }
     }
 
     /// Standard deviation of a channel's reading (noise and quantisation, LSB/sqrt(12)), in
     /// its unit; None if the channel is switched off.
-    pub fn reading_sd(&self, channel: usize) -> Option<f64> {
-        let (_, c) = self.channels()[channel];
-        c.enabled.then(|| {
-            let adc = Adc::new(c, self.preset, DEFAULT_RANGES[channel]);
+    pub fn reading_sd(&self, c: ChannelId) -> Option<f64> {
+        let p = self.channel(c);
+        p.enabled.then(|| {
+            let adc = Adc::new(p, self.preset, CHANNELS[c as usize].default_range);
             (adc.noise_std * adc.noise_std + adc.lsb * adc.lsb / 12.0).sqrt()
         })
     }
-}
 
-/// True plant signals at one instant (what ideal sensors would read).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Truth {
-    /// Load force F_L (N).
-    pub force_n: f64,
-    /// dF_L/dt (N/s).
-    pub force_rate_n_per_s: f64,
-    /// Spool position (m).
-    pub spool_m: f64,
-    /// Piston position (m).
-    pub piston_m: f64,
-    /// Piston velocity (m/s).
-    pub piston_velocity_m_s: f64,
-    /// Piston acceleration (m/s^2).
-    pub piston_accel_m_s2: f64,
-    /// Knee angle (rad), 0 on the bench.
-    pub knee_rad: f64,
-    /// Knee rate (rad/s), 0 on the bench.
-    pub knee_rate_rad_s: f64,
-}
-
-impl Truth {
-    /// The ideal measurement: every signal exact, derivatives exact.
-    pub fn ideal(&self) -> Measurement {
-        Measurement {
-            force_n: self.force_n,
-            force_rate_n_per_s: self.force_rate_n_per_s,
-            spool_m: self.spool_m,
-            piston_m: self.piston_m,
-            piston_velocity_m_s: self.piston_velocity_m_s,
-            piston_accel_m_s2: self.piston_accel_m_s2,
-            knee_rad: self.knee_rad,
-            knee_rate_rad_s: self.knee_rate_rad_s,
-        }
+    /// The quantisation step (LSB, channel unit) of a channel; None without quantisation.
+    pub fn lsb(&self, c: ChannelId) -> Option<f64> {
+        let adc = Adc::new(self.channel(c), self.preset, CHANNELS[c as usize].default_range);
+        (adc.lsb > 0.0).then_some(adc.lsb)
     }
 }
 
@@ -221,8 +283,9 @@ impl Adc {
         Self { noise_std: c.noise_std, lsb, range }
     }
 
-    /// A reading and whether it clipped at the full scale.
-    fn read(&self, x: f64, rng: &mut ChaCha8Rng) -> (f64, bool) {
+    /// A reading, whether it clipped at the full scale, and its A/D counts (None without
+    /// quantisation).
+    fn read(&self, x: f64, rng: &mut ChaCha8Rng) -> (f64, bool, Option<i64>) {
         let n: f64 = if self.noise_std > 0.0 {
             {
                 let z: f64 = StandardNormal.sample(rng);
@@ -233,9 +296,10 @@ impl Adc {
         };
         let v = x + n;
         if self.lsb > 0.0 {
-            ((v.clamp(-self.range, self.range) / self.lsb).round() * self.lsb, v.abs() > self.range)
+            let counts = (v.clamp(-self.range, self.range) / self.lsb).round();
+            (counts * self.lsb, v.abs() > self.range, Some(counts as i64))
         } else {
-            (v, false)
+            (v, false, None)
         }
     }
 }
@@ -250,7 +314,7 @@ pub struct SampledSensors {
     clipped: [usize; 5],
     rng: ChaCha8Rng,
     delay: usize,
-    line: VecDeque<[f64; 5]>,
+    line: VecDeque<([f64; 5], AdcCounts)>,
     d_force: Differentiator,
     d_piston: Differentiator,
     d_piston_vel: Differentiator,
@@ -269,8 +333,8 @@ impl SampledSensors {
         Self {
             period_s,
             alpha,
-            adc: std::array::from_fn(|i| Adc::new(p.channels()[i].1, p.preset, DEFAULT_RANGES[i])),
-            enabled: std::array::from_fn(|i| p.channels()[i].1.enabled),
+            adc: CHANNELS.map(|c| Adc::new(p.channel(c.id), p.preset, c.default_range)),
+            enabled: CHANNELS.map(|c| p.channel(c.id).enabled),
             clipped: [0; 5],
             rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5E45_0125),
             delay: p.delay_samples,
@@ -284,23 +348,30 @@ impl SampledSensors {
 
     /// Readings that clipped at each channel's full scale so far, by channel name.
     pub fn clipped(&self) -> Vec<(&'static str, usize)> {
-        CHANNELS.iter().copied().zip(self.clipped).filter(|(_, n)| *n > 0).collect()
+        CHANNELS.iter().map(|c| c.name).zip(self.clipped).filter(|(_, n)| *n > 0).collect()
     }
 
-    /// Take one sample of the plant.
-    pub fn sample(&mut self, truth: &Truth) -> Measurement {
-        let raw = [truth.force_n, truth.spool_m, truth.piston_m, truth.knee_rad, truth.piston_velocity_m_s];
+    /// Take one sample of the plant whose ideal readings are `truth`: the readings the
+    /// controller sees and their raw A/D counts.
+    pub fn sample(&mut self, truth: &Measurement) -> (Measurement, AdcCounts) {
         let mut reading = [f64::NAN; 5];
-        for i in 0..5 {
+        let mut counts = AdcCounts::default();
+        for c in CHANNELS {
+            let i = c.id as usize;
             if self.enabled[i] {
-                let (v, clipped) = self.adc[i].read(raw[i], &mut self.rng);
+                let (v, clipped, n) = self.adc[i].read(truth.channel(c.id), &mut self.rng);
                 reading[i] = v;
+                counts.0[i] = n;
                 self.clipped[i] += usize::from(clipped);
             }
         }
-        self.line.push_back(reading);
+        self.line.push_back((reading, counts));
         // Until the delay line fills, firmware sees its first reading.
-        let r = if self.line.len() > self.delay { self.line.pop_front().unwrap_or(reading) } else { self.line[0] };
+        let (r, counts) = if self.line.len() > self.delay {
+            self.line.pop_front().unwrap_or((reading, counts))
+        } else {
+            self.line[0]
+        };
         let (ts, a) = (self.period_s, self.alpha);
         let force_rate = self.d_force.update(r[0], ts, a, truth.force_rate_n_per_s);
         let (vel, acc) = if self.enabled[4] {
@@ -310,7 +381,7 @@ impl SampledSensors {
             (vel, self.d_piston_vel.update(vel, ts, a, truth.piston_accel_m_s2))
         };
         let knee_rate = self.d_knee.update(r[3], ts, a, truth.knee_rate_rad_s);
-        Measurement {
+        let y = Measurement {
             force_n: r[0],
             force_rate_n_per_s: force_rate,
             spool_m: r[1],
@@ -319,7 +390,8 @@ impl SampledSensors {
             piston_accel_m_s2: acc,
             knee_rad: r[3],
             knee_rate_rad_s: knee_rate,
-        }
+        };
+        (y, counts)
     }
 }
 
@@ -333,7 +405,7 @@ mod tests {
         let mut s = SampledSensors::new(&p, 1e-3, 1);
         let lsb = 10000.0 / 65536.0;
         let ys: Vec<f64> = (0..5)
-            .map(|k| s.sample(&Truth { force_n: 100.0 * k as f64 + 0.05, ..Default::default() }).force_n)
+            .map(|k| s.sample(&Measurement { force_n: 100.0 * k as f64 + 0.05, ..Default::default() }).0.force_n)
             .collect();
         // Delay of two samples (first reading repeated until the line fills), on the LSB grid.
         assert_eq!(ys[0], ys[1]);
@@ -344,7 +416,7 @@ mod tests {
         let mut p = SensorParams::default();
         p.force.noise_std = 2.0;
         let mut s = SampledSensors::new(&p, 1e-3, 7);
-        let xs: Vec<f64> = (0..20000).map(|_| s.sample(&Truth::default()).force_n).collect();
+        let xs: Vec<f64> = (0..20000).map(|_| s.sample(&Measurement::default()).0.force_n).collect();
         let sd = (xs.iter().map(|x| x * x).sum::<f64>() / xs.len() as f64).sqrt();
         assert!((sd - 2.0).abs() < 0.05, "noise sd {sd}");
     }

@@ -1,57 +1,61 @@
 //! The co-simulation loop: wires reference, sensors, controller, hydraulics and plant.
 //!
 //! [`Simulation::new`] builds the mutable parts of a run (plant, controller, sensors) from a
-//! [`Model`] (the immutable model, MuJoCo's `mjModel`); [`Simulation::step`]
-//! advances one fixed step of size `dt` from `t_k` and hands the row of `t_k` to a
-//! [`RecordSink`]; [`Simulation::finish`] records the final state. In pseudocode, exactly as
-//! [`Simulation::step`] does it:
+//! [`Model`] (the immutable model, MuJoCo's `mjModel`); [`Simulation::with_controller`] puts
+//! the caller's [`DiscreteController`] in the loop instead, and [`Simulation::external`]
+//! leaves the controller to the caller (who owns the loop). A sampled run splits the step
+//! where control happens (MuJoCo's `mj_step1`/`mj_step2`): [`Simulation::sample`] reads the
+//! sensors at a sample instant, [`Simulation::hold`] applies a command, and
+//! [`Simulation::advance`] integrates one fixed step of size `dt` from `t_k`, handing the row
+//! of `t_k` to a [`RecordSink`]. [`Simulation::step`] is the three with the run's own
+//! controller (the built-in sampled controllers take the same path).
+//! [`Simulation::finish`] records the final state. In pseudocode, as [`Simulation::step`]
+//! does it:
 //!
 //! ```text
-//! pred = plant.piston_predictor()                  // leg + hydraulic actuator; else none
-//! x.piston = pred's position and velocity at t_k
-//! if k == 0: start()                               // hydraulics on the gait trajectory; continuous
-//!                                                  // controller state from the first ideal reading
-//! if sampled and k is a sample instant:            // zero-order hold (sensors::ZeroOrderHold)
-//!     y      = sensors.sample(truth(t_k))           // noise, A/D, delay, differences
-//!     F_pd   = knee_pd(y)                           // gait cascade's outer loop
-//!     u_hold = controller.update(y, F_d(t_k), F_d(t_k+Ts))   // firmware step, valve limit applied
-//! else if continuous: F_pd = knee_pd(plant's knee state)
-//! s0  = evaluate(t_k, x)                           // see below
-//! w1  = human.interaction(F_L - F_d, s0.x2 - dF_d/dt)  // once per step, held over it
-//! sink.row(record(t_k, x, s0, w1))
-//! x   = integrate x over [t_k, t_k + dt] (euler | ode3 | rk4) with evaluate(tau, x).dx
-//! F_cyl  = pred ? impulse-average force of the predictor : F_L - F_f   (or prescribed / 0)
-//! stroke = plant.advance(t_k, dt, F_cyl, cuff w1, hip target at t_k + dt)
-//! cylinder.apply_stroke(stroke - predicted stroke)  // oil spring sees the geometric stroke
-//! cylinder.clamp(x)                                 // hard stops
-//! stop if a state is non-finite or the spool is past 1 m (Error::Diverged, naming the state)
+//! begin:  pred = plant.piston_predictor()          // leg + hydraulic actuator; else none
+//!         x.piston = pred's position and velocity at t_k
+//!         if k == 0: start()                       // hydraulics on the gait trajectory
+//! sample (sampled mode, k a sample instant; ZeroOrderHold):
+//!         y, counts = sensors.sample(truth(t_k))   // noise, A/D, delay, differences
+//!         F_pd = knee_pd(y)                        // gait cascade's outer loop
+//!         input = (y, counts, F_d(t_k), F_d(t_k+Ts), valve limit)
+//! hold:   u_hold = valve_limit(controller.update(input))   // or the caller's command
+//! advance:
+//!     continuous: F_pd = knee_pd(plant's knee state); at k == 0 the controller state from
+//!                 the first ideal reading
+//!     s0  = evaluate(t_k, x)                       // see below
+//!     w1  = human.interaction(F_L - F_d, s0.x2 - dF_d/dt)  // once per step, held over it
+//!     sink.row(record(t_k, x, s0, w1))
+//!     x   = integrate x over [t_k, t_k + dt] (euler | ode3 | rk4) with evaluate(tau, x).dx
+//!     F_cyl  = pred ? impulse-average force of the predictor : F_L - F_f   (or prescribed / 0)
+//!     stroke = plant.advance(t_k, F_cyl, cuff w1, hip target at t_k + dt)
+//!     cylinder.end_step(stroke - predicted stroke)  // oil spring sees the geometric stroke,
+//!                                                   // then the hard stops
+//!     stop if a state is non-finite or the spool is past 1 m (Error::Diverged, naming the state)
 //! ```
 //! `evaluate(tau, x)`, at every integrator stage: piston motion (predictor states with
 //! Rapier's substep lead, or the bench's prescribed motion); F_d(tau) + held F_pd;
-//! disturbances; x2 = dF_L/dt from the cylinder (0 past a force bound); u = the held output,
-//! or in continuous mode `valve_limit(controller.output(tau, F_d, ideal y, s))` with the
+//! disturbances; the cylinder's rates (x2 = dF_L/dt, 0 past a force bound); u = the held
+//! output, or in continuous mode `valve_limit(controller.output(tau, F_d, ideal y, s))` with the
 //! controller state's derivative; the cylinder's derivatives with its hard stops.
 //! After the last step the final state is recorded, so a run has `steps + 1` rows.
 
-pub mod integrator;
 mod model;
 mod stage;
 mod state;
 
-pub use integrator::Integrator;
+pub use crate::integrator::Integrator;
 pub use model::Model;
-pub use state::{KneeState, Packed, PistonState, State};
+pub use state::{KneeState, PistonState, State, PLANT_LEN};
 
-use crate::control::{
-    self, ControlOutput, Controller, DiscreteController, Measurement, SampleInput, Sampled, ValveLimit,
-};
+use crate::control::{ControlOutput, Controller, DiscreteController, Measurement, SampleInput, MAX_LOGGED};
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
 use crate::hydraulics::ActuatorMode;
-use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics};
 use crate::plant::PlantSetup;
 use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs, ReducedLegPlant};
-use crate::record::{Layout, MemoryRecord, RecordSink, Tee};
+use crate::record::{Layout, RecordSink};
 use crate::sensors::{SampledSensors, ZeroOrderHold};
 use stage::Dynamics;
 use std::sync::Arc;
@@ -63,15 +67,31 @@ pub const MAX_SUBSTEPS: usize = 1000;
 /// Fraction of the integrator's stability limit a substep may use.
 const STABILITY_MARGIN: f64 = 0.5;
 
-/// What is held over one step: the leg's piston predictor, the outer-loop force of the knee
-/// cascade, and (sampled mode) the controller output.
+/// What is held over one step: the leg's piston predictor, the outer loop of the knee cascade
+/// (its force and its integral), the cuff force, and (sampled mode) the controller output.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Held {
     pub predictor: Option<PistonPredictor>,
     pub pd_force_n: f64,
+    /// The outer loop's knee-error integral (rad s).
+    pub knee_integral_rad_s: f64,
     /// Cuff force over the step (N, `human.mode = "cuff"`), for coupled mechanics.
     pub cuff_force_n: f64,
     pub output: Option<ControlOutput>,
+}
+
+/// The sampled controller's side of the loop: sensors, hold, and the controller (or none when
+/// the caller brings the commands).
+struct SampledLoop {
+    ctrl: Option<Box<dyn DiscreteController>>,
+    sensors: SampledSensors,
+    hold: ZeroOrderHold<ControlOutput>,
+    /// The step whose sample was taken and still needs its command (`hold`).
+    awaiting: Option<usize>,
+    /// The step whose sample was taken (so `advance` knows the sample is done).
+    sampled: Option<usize>,
+    log_names: Vec<String>,
+    log: [f64; MAX_LOGGED],
 }
 
 /// The controller as the loop runs it.
@@ -79,7 +99,18 @@ enum ControlBlock {
     /// Evaluated at every integrator stage; its state is integrated with the plant's.
     Continuous(Box<dyn Controller>),
     /// Firmware: sensors sampled, output computed and held, every `hold` period.
-    Sampled { ctrl: Box<dyn DiscreteController>, sensors: Box<SampledSensors>, hold: ZeroOrderHold<ControlOutput> },
+    Sampled(Box<SampledLoop>),
+}
+
+/// Where a run's controller comes from.
+pub enum ControllerSource {
+    /// Built from the model (`controller.kind`).
+    Model,
+    /// The caller's sampled controller (any [`DiscreteController`]).
+    Discrete(Box<dyn DiscreteController>),
+    /// None: the caller reads [`Simulation::sample`] and gives [`Simulation::hold`] a command
+    /// at every sample instant.
+    External,
 }
 
 /// A running simulation (MuJoCo's `mjData` with the step that advances it).
@@ -89,46 +120,95 @@ pub struct Simulation {
     control: ControlBlock,
     controller_names: Vec<String>,
     state: State,
+    /// The continuous controller's state (sized when it is built).
+    controller_state: Vec<f64>,
+    /// The integrator's packed vector and scratch, allocated once.
+    packed: Vec<f64>,
+    first: Vec<f64>,
+    work: Vec<f64>,
     held: Held,
     k: usize,
+    /// The slope of a substep's start (substeps after the first).
+    scratch_k1: Vec<f64>,
+    /// The first substep starts from the recorded evaluation (`first`).
+    reuse_first: bool,
+    /// The step whose start (predictor, t = 0 hydraulics) is done.
+    begun: Option<usize>,
     max_substeps: usize,
     substepped_steps: usize,
-    /// The outer loop's knee-error integral (rad s).
-    knee_integral_rad_s: f64,
 }
 
-/// Build the continuous-time controller a scenario asks for.
-pub fn build_controller(sc: &Model) -> Box<dyn Controller> {
-    control::build(&sc.controller, sc.nominal)
+/// Build the plant of a model.
+fn build_plant(sc: &Model) -> Result<Box<dyn Plant>> {
+    Ok(match &sc.plant {
+        PlantSetup::Bench(b) => Box::new(Bench::new(b.clone())),
+        PlantSetup::Leg(l) => match &l.reduced {
+            Some(r) => Box::new(ReducedLegPlant::new(l, r.clone(), sc.reference.clone())?),
+            None => Box::new(LegPlant::new(l, sc.dt_s, &sc.source_name)?),
+        },
+    })
 }
 
 impl Simulation {
-    /// Build a run: plant at its initial state, controller, sensors.
+    /// Build a run with every block from the model: plant at its initial state, controller,
+    /// sensors.
     pub fn new(sc: Arc<Model>) -> Result<Self> {
-        let plant: Box<dyn Plant> = match &sc.plant {
-            PlantSetup::Bench(b) => Box::new(Bench::new(b.clone())),
-            PlantSetup::Leg(l) => match &l.reduced {
-                Some(r) => Box::new(ReducedLegPlant::new(l, r.clone(), sc.reference.clone())?),
-                None => Box::new(LegPlant::new(l, sc.dt_s, &sc.source_name)?),
-            },
+        Self::build(sc, ControllerSource::Model)
+    }
+
+    /// Build a run with the caller's sampled controller in the loop (the model's
+    /// `controller.sample_period_s` must be > 0; its `controller.kind` is not used).
+    pub fn with_controller(sc: Arc<Model>, ctrl: Box<dyn DiscreteController>) -> Result<Self> {
+        Self::build(sc, ControllerSource::Discrete(ctrl))
+    }
+
+    /// Build a run whose commands the caller gives at every sample instant
+    /// ([`Self::sample`], [`Self::hold`], [`Self::advance`]).
+    pub fn external(sc: Arc<Model>) -> Result<Self> {
+        Self::build(sc, ControllerSource::External)
+    }
+
+    /// Build a run with the controller from `source`.
+    pub fn build(sc: Arc<Model>, source: ControllerSource) -> Result<Self> {
+        let plant = build_plant(&sc)?;
+        let outside = !matches!(source, ControllerSource::Model);
+        let control = match (sc.sample_every, source) {
+            (None, _) if outside => {
+                return Err(Error::input(
+                    &sc.source_name,
+                    "controller.sample_period_s",
+                    "a controller from outside runs sampled: set controller.sample_period_s > 0",
+                ))
+            }
+            (None, _) => ControlBlock::Continuous(sc.controller.continuous(sc.nominal)),
+            (Some(every), source) => {
+                let ctrl = match source {
+                    ControllerSource::Model => Some(
+                        sc.controller
+                            .discrete(sc.nominal, sc.valve_limit)
+                            .map_err(|m| Error::input(&sc.source_name, "controller.plugin", m))?,
+                    ),
+                    ControllerSource::Discrete(c) => Some(c),
+                    ControllerSource::External => None,
+                };
+                ControlBlock::Sampled(Box::new(SampledLoop::new(&sc, every, ctrl)?))
+            }
         };
-        let ctrl = build_controller(&sc);
-        let controller_names = ctrl.state_names();
-        let control = match sc.sample_every {
-            None => ControlBlock::Continuous(ctrl),
-            Some(every) => ControlBlock::Sampled {
-                ctrl: match &sc.dtznn {
-                    Some(d) => Box::new(d.clone()),
-                    None => Box::new(Sampled::new(ctrl, ValveLimit(sc.actuator.valve_command_limit))),
-                },
-                sensors: Box::new(SampledSensors::new(&sc.sensors, sc.controller.sample_period_s, sc.seed)),
-                hold: ZeroOrderHold::new(every, ControlOutput::default()),
-            },
+        let controller_names = match &control {
+            ControlBlock::Continuous(c) => c.state_names(),
+            ControlBlock::Sampled(_) => Vec::new(),
         };
+        let n = PLANT_LEN + controller_names.len();
         let state = State { hyd: sc.cylinder.initial_state(), ..Default::default() };
-        let output = matches!(control, ControlBlock::Sampled { .. }).then(ControlOutput::default);
+        let output = matches!(control, ControlBlock::Sampled(_)).then(ControlOutput::default);
         let held = Held { output, ..Default::default() };
         Ok(Self {
+            controller_state: vec![0.0; controller_names.len()],
+            packed: vec![0.0; n],
+            first: vec![0.0; n],
+            work: vec![0.0; crate::integrator::SCRATCH_VECTORS * n],
+            scratch_k1: vec![0.0; n],
+            reuse_first: false,
             sc,
             plant,
             control,
@@ -136,9 +216,9 @@ impl Simulation {
             state,
             held,
             k: 0,
+            begun: None,
             max_substeps: 1,
             substepped_steps: 0,
-            knee_integral_rad_s: 0.0,
         })
     }
 
@@ -148,14 +228,31 @@ impl Simulation {
             knee_reference: self.sc.reference.knee_at(0.0).is_some(),
             leg: self.plant.leg_row().is_some(),
             contact: self.plant.contact_row().is_some(),
+            log: match &self.control {
+                ControlBlock::Sampled(l) => l.log_names.clone(),
+                ControlBlock::Continuous(_) => Vec::new(),
+            },
         }
+    }
+
+    /// The model this run was built from.
+    pub fn model(&self) -> &Arc<Model> {
+        &self.sc
     }
 
     /// Design figures of a sampled controller (gains computed at start), if it has any.
     pub fn controller_design(&self) -> Option<serde_json::Value> {
         match &self.control {
-            ControlBlock::Sampled { ctrl, .. } => ctrl.design(),
+            ControlBlock::Sampled(l) => l.ctrl.as_ref().and_then(|c| c.design()),
             ControlBlock::Continuous(_) => None,
+        }
+    }
+
+    /// How many samples the controller flagged with a warning, and the last warning's text.
+    pub fn controller_warnings(&self) -> (usize, Option<String>) {
+        match &self.control {
+            ControlBlock::Sampled(l) => l.ctrl.as_ref().map_or((0, None), |c| c.warnings()),
+            ControlBlock::Continuous(_) => (0, None),
         }
     }
 
@@ -164,10 +261,25 @@ impl Simulation {
         self.k
     }
 
+    /// Simulated time now (s): the start of the next step.
+    pub fn t_s(&self) -> f64 {
+        self.k as f64 * self.sc.dt_s
+    }
+
+    /// True when the run has taken all its steps (only [`Self::finish`] is left).
+    pub fn done(&self) -> bool {
+        self.k >= self.sc.steps
+    }
+
+    /// True when the next step starts at a sample instant of a sampled controller.
+    pub fn is_sample_step(&self) -> bool {
+        matches!(&self.control, ControlBlock::Sampled(l) if l.hold.is_sample(self.k))
+    }
+
     fn dynamics(&self) -> Dynamics<'_> {
         let continuous = match &self.control {
             ControlBlock::Continuous(c) => Some(c.as_ref()),
-            ControlBlock::Sampled { .. } => None,
+            ControlBlock::Sampled(_) => None,
         };
         Dynamics { sc: &self.sc, controller: continuous }
     }
@@ -176,8 +288,13 @@ impl Simulation {
         self.sc.actuator.mode == ActuatorMode::Hydraulic
     }
 
-    /// Step start: the leg's local piston model for this step (None for a prescribed piston).
-    fn take_predictor(&mut self) {
+    /// The start of step k, once: the leg's local piston model for this step (None for a
+    /// prescribed piston) and, at step 0, the hydraulics on the gait trajectory.
+    fn begin(&mut self) {
+        if self.begun == Some(self.k) {
+            return;
+        }
+        self.begun = Some(self.k);
         self.held.predictor = if self.hydraulic() { self.plant.piston_predictor() } else { None };
         if let Some(p) = &self.held.predictor {
             self.state.piston = PistonState { position_m: p.position_m, velocity_m_s: p.velocity_m_s };
@@ -185,6 +302,9 @@ impl Simulation {
                 self.state.knee =
                     KneeState { angle_rad: self.plant.knee_rad(), rate_rad_s: self.plant.knee_rate_rad_s() };
             }
+        }
+        if self.k == 0 {
+            self.start_hydraulics();
         }
     }
 
@@ -199,58 +319,125 @@ impl Simulation {
         }
     }
 
-    /// The controller's turn at `t`: a firmware sample, or (continuous) the outer loop from the
-    /// plant's knee state and, at step 0, the controller state from the first ideal reading.
-    fn control(&mut self, t: f64) {
-        let sample_period = self.sc.controller.sample_period_s;
-        match &mut self.control {
-            ControlBlock::Sampled { ctrl, sensors, hold } => {
-                if !hold.is_sample(self.k) {
-                    return;
-                }
-                let d = Dynamics { sc: &self.sc, controller: None };
-                let s0 = d.evaluate(t, &self.state, self.plant.as_ref(), &self.held);
-                let y =
-                    sensors.sample(&d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held));
-                // The outer loop compares each reading with the reference at the reading's time,
-                // and takes the knee rate from the piston-velocity sensor when there is one
-                // (v / (dL/dq): no differencing lag), else from the encoder's difference.
-                let t_reading = (t - self.sc.sensors.delay_samples as f64 * sample_period).max(0.0);
-                let knee_rate = match self.sc.leg() {
-                    Some(leg) if self.sc.sensors.piston_velocity.enabled => {
-                        y.piston_velocity_m_s / crate::leg::moment_arm_at(&leg.model, y.knee_rad)
-                    }
-                    _ => y.knee_rate_rad_s,
-                };
-                self.knee_integral_rad_s =
-                    d.pd_integral(t_reading, self.knee_integral_rad_s, y.knee_rad, sample_period);
-                self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, knee_rate, self.knee_integral_rad_s);
-                let r = d.reference_at(t, &self.held);
-                let r_next = d.reference_at(t + sample_period, &self.held);
-                let out = ctrl.update(&SampleInput { t_s: t, period_s: sample_period, y: &y, r, r_next });
-                hold.set(out);
-                self.held.output = Some(out);
+    /// Step 1 of a sampled step (MuJoCo's `mj_step1`): at a sample instant, read the sensors
+    /// and update the gait cascade's outer loop; returns what the controller gets. Then
+    /// [`Self::hold`] the command and [`Self::advance`].
+    pub fn sample(&mut self) -> Result<SampleInput> {
+        if !self.is_sample_step() {
+            return Err(Error::Usage(format!("step {} (t = {} s) is not a sample instant", self.k, self.t_s())));
+        }
+        self.begin();
+        let t = self.t_s();
+        let period = self.sc.sample_period_s;
+        let d = Dynamics { sc: &self.sc, controller: None };
+        let s0 = d.evaluate(t, &self.state, &[], &mut [], self.plant.as_ref(), &self.held);
+        let truth = d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held);
+        let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
+        let (y, counts) = l.sensors.sample(&truth);
+        l.sampled = Some(self.k);
+        l.awaiting = Some(self.k);
+        // The outer loop compares each reading with the reference at the reading's time,
+        // and takes the knee rate from the piston-velocity sensor when there is one
+        // (v / (dL/dq): no differencing lag), else from the encoder's difference.
+        let t_reading = (t - self.sc.sensors.delay_samples as f64 * period).max(0.0);
+        let knee_rate = match self.sc.leg() {
+            Some(leg) if self.sc.sensors.piston_velocity.enabled => {
+                y.piston_velocity_m_s / crate::leg::moment_arm_at(&leg.model, y.knee_rad)
             }
+            _ => y.knee_rate_rad_s,
+        };
+        let d = Dynamics { sc: &self.sc, controller: None };
+        self.held.knee_integral_rad_s = d.pd_integral(t_reading, self.held.knee_integral_rad_s, y.knee_rad, period);
+        self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, knee_rate, self.held.knee_integral_rad_s);
+        let r = d.reference_at(t, &self.held);
+        let r_next = d.reference_at(t + period, &self.held);
+        Ok(SampleInput { t_s: t, period_s: period, y, counts, r, r_next, valve_limit: self.sc.valve_limit })
+    }
+
+    /// Step 2 of a sampled step: hold the controller's output (clipped to the valve limit, and
+    /// marked saturated when it was) until the next sample. A non-finite command stops the run.
+    pub fn hold(&mut self, out: ControlOutput) -> Result<()> {
+        let t = self.t_s();
+        let kind = match &self.control {
+            ControlBlock::Sampled(l) => l.ctrl.as_ref().map_or("external".to_string(), |c| c.kind().to_string()),
             ControlBlock::Continuous(_) => {
-                let d = self.dynamics();
-                let q = self.plant.knee_rad();
-                self.knee_integral_rad_s = d.pd_integral(t, self.knee_integral_rad_s, q, self.sc.dt_s);
-                let d = self.dynamics();
-                let pd = d.pd_force(t, q, self.plant.knee_rate_rad_s(), self.knee_integral_rad_s);
-                self.held.pd_force_n = pd;
-                if self.k == 0 {
-                    let init = Held { output: Some(ControlOutput::default()), ..self.held };
-                    let d = self.dynamics();
-                    let s0 = d.evaluate(0.0, &self.state, self.plant.as_ref(), &init);
-                    let y0: Measurement =
-                        d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), 0.0, &init).ideal();
-                    let r0 = d.reference_at(0.0, &self.held);
-                    let mut s = self.state.controller;
-                    if let ControlBlock::Continuous(c) = &self.control {
-                        c.init(&y0, &r0, &mut s);
-                    }
-                    self.state.controller = s;
-                }
+                return Err(Error::Usage("hold(): the run's controller is continuous".into()))
+            }
+        };
+        if !out.valve_command.is_finite() {
+            return Err(Error::ControllerStopped {
+                time_s: t,
+                controller: kind,
+                message: format!("the valve command is {}", out.valve_command),
+            });
+        }
+        let out = self.sc.valve_limit.apply(out);
+        let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
+        if l.awaiting.take() != Some(self.k) {
+            return Err(Error::Usage(format!("hold() at step {} without sample() first", self.k)));
+        }
+        l.hold.set(out);
+        if let Some(c) = &l.ctrl {
+            c.log_values(&mut l.log[..l.log_names.len()]);
+        }
+        self.held.output = Some(out);
+        Ok(())
+    }
+
+    /// Record the logged values of an outside controller (the caller's loop), in the order of
+    /// the names given when it was built with them.
+    pub fn set_log(&mut self, values: &[f64]) {
+        if let ControlBlock::Sampled(l) = &mut self.control {
+            let n = l.log_names.len().min(values.len());
+            l.log[..n].copy_from_slice(&values[..n]);
+        }
+    }
+
+    /// Name the channels an outside caller logs with [`Self::set_log`] (before the first step;
+    /// at most [`MAX_LOGGED`]).
+    pub fn set_log_names(&mut self, names: Vec<String>) -> Result<()> {
+        if names.len() > MAX_LOGGED || self.k > 0 {
+            return Err(Error::Usage(format!("at most {MAX_LOGGED} logged channels, named before the first step")));
+        }
+        if let ControlBlock::Sampled(l) = &mut self.control {
+            l.log_names = names;
+        }
+        Ok(())
+    }
+
+    /// The run's own sampled controller at a sample instant: sample, update, hold.
+    fn control_sampled(&mut self) -> Result<()> {
+        let input = self.sample()?;
+        let t = input.t_s;
+        let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
+        let Some(ctrl) = l.ctrl.as_mut() else {
+            return Err(Error::Usage(format!("step {}: a sample instant needs a command (hold)", self.k)));
+        };
+        let out = ctrl.update(&input).map_err(|e| Error::ControllerStopped {
+            time_s: t,
+            controller: ctrl.kind().to_string(),
+            message: e.message,
+        })?;
+        self.hold(out)
+    }
+
+    /// The continuous controller's turn at `t`: the outer loop from the plant's knee state and,
+    /// at step 0, the controller state from the first ideal reading.
+    fn control_continuous(&mut self, t: f64) {
+        let d = self.dynamics();
+        let q = self.plant.knee_rad();
+        let integral = d.pd_integral(t, self.held.knee_integral_rad_s, q, self.sc.dt_s);
+        let pd = d.pd_force(t, q, self.plant.knee_rate_rad_s(), integral);
+        self.held.knee_integral_rad_s = integral;
+        self.held.pd_force_n = pd;
+        if self.k == 0 {
+            let init = Held { output: Some(ControlOutput::default()), ..self.held };
+            let d = self.dynamics();
+            let s0 = d.evaluate(0.0, &self.state, &[], &mut [], self.plant.as_ref(), &init);
+            let y0: Measurement = d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), 0.0, &init);
+            let r0 = d.reference_at(0.0, &self.held);
+            if let ControlBlock::Continuous(c) = &self.control {
+                c.init(&y0, &r0, &mut self.controller_state);
             }
         }
     }
@@ -267,40 +454,39 @@ impl Simulation {
         }
     }
 
-    /// Advance one step; the row of the step's start goes to `sink`.
+    /// Advance one step with the run's own controller; the row of the step's start goes to
+    /// `sink`.
     pub fn step(&mut self, sink: &mut dyn RecordSink) -> Result<()> {
-        let dt = self.sc.dt_s;
-        let t = self.k as f64 * dt;
-        self.take_predictor();
-        if self.k == 0 {
-            self.start_hydraulics();
+        if self.is_sample_step() {
+            self.control_sampled()?;
         }
-        self.control(t);
-        let s0 = self.dynamics().evaluate(t, &self.state, self.plant.as_ref(), &self.held);
-        let w1 = self.interaction(t, s0.force_rate_n_per_s);
-        sink.row(&self.dynamics().row(t, &self.state, &s0, w1, self.plant.as_ref(), &self.held))?;
-        let cuff_force_n = if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 };
-        // The integrator's first stage is s0 unless coupled mechanics now see another cuff force.
-        let first = s0.derivative.pack();
-        let reuse_first = self.plant.coupled().is_none() || self.held.cuff_force_n == cuff_force_n;
-        self.held.cuff_force_n = cuff_force_n;
+        self.advance(sink)
+    }
+
+    /// Integrate one fixed step from `t_k` (after [`Self::sample`] and [`Self::hold`] at a
+    /// sample instant); the row of `t_k` goes to `sink`.
+    pub fn advance(&mut self, sink: &mut dyn RecordSink) -> Result<()> {
+        if let ControlBlock::Sampled(l) = &self.control {
+            if l.hold.is_sample(self.k) && (l.sampled != Some(self.k) || l.awaiting.is_some()) {
+                return Err(Error::Usage(format!(
+                    "step {} (t = {} s) is a sample instant: sample() and hold() come first",
+                    self.k,
+                    self.t_s()
+                )));
+            }
+        }
+        let dt = self.sc.dt_s;
+        let t = self.t_s();
+        self.begin();
+        if let ControlBlock::Continuous(_) = self.control {
+            self.control_continuous(t);
+        }
+        let s0 = self.record_start(t, sink)?;
         let start = self.state;
         let v0 = self.plant.piston_at(t).velocity_m_s;
         let r0 = self.dynamics().reference_at(t, &self.held);
         if self.hydraulic() {
-            let n = self.substeps(t, s0.force_rate_n_per_s)?;
-            let d = self.dynamics();
-            let (plant, held, h) = (self.plant.as_ref(), &self.held, dt / n as f64);
-            let mut x = start.pack();
-            for i in 0..n {
-                let f = |tau: f64, xs: &Packed| d.evaluate(tau, &State::unpack(xs), plant, held).derivative.pack();
-                let ti = t + i as f64 * h;
-                x = match (i, reuse_first) {
-                    (0, true) => self.sc.integrator.step_from(ti, h, &x, &first, f),
-                    _ => self.sc.integrator.step(ti, h, &x, f),
-                };
-            }
-            self.state = State::unpack(&x);
+            self.integrate(t, &s0)?;
         }
         let cylinder_force_n = match &self.held.predictor {
             Some(p) => {
@@ -311,23 +497,76 @@ impl Simulation {
         };
         let inputs = PlantInputs {
             cylinder_force_n,
-            cuff_force_n,
+            cuff_force_n: self.held.cuff_force_n,
             hip_target_rad: self.sc.reference.hip_at(t + dt).map(|h| h.value),
             knee_end: (self.held.predictor.is_some() && self.plant.coupled().is_some())
                 .then_some((self.state.knee.angle_rad, self.state.knee.rate_rad_s)),
         };
         let stroke = self.plant.advance(t, dt, &inputs)?;
-        if self.hydraulic() {
+        let missed = self.hydraulic().then(|| {
             let seen = match &self.held.predictor {
                 Some(_) => self.state.piston.position_m - start.piston.position_m,
                 None => self.plant.piston_at(t + dt).position_m - self.plant.piston_at(t).position_m,
             };
-            let xc = self.plant.piston_at(t + dt).position_m;
-            self.sc.cylinder.apply_stroke(&mut self.state.hyd, xc, stroke - seen);
-        }
-        self.sc.cylinder.clamp(&mut self.state.hyd);
+            (self.plant.piston_at(t + dt).position_m, stroke - seen)
+        });
+        self.sc.cylinder.end_step(&mut self.state.hyd, missed);
         self.k += 1;
         self.check(t + dt)
+    }
+
+    /// Evaluate the step's start, hand its row to `sink`, and set the cuff force held over the
+    /// step. Returns the start's evaluation with its packed derivative in `self.first`.
+    fn record_start(&mut self, t: f64, sink: &mut dyn RecordSink) -> Result<stage::Stage> {
+        let mut first = std::mem::take(&mut self.first);
+        let (dp, dc) = first.split_at_mut(PLANT_LEN);
+        let s0 = self.dynamics().evaluate(t, &self.state, &self.controller_state, dc, self.plant.as_ref(), &self.held);
+        s0.derivative.pack_into(dp);
+        self.first = first;
+        let w1 = self.interaction(t, s0.force_rate_n_per_s);
+        let mut row = self.dynamics().row(t, &self.state, &s0, w1, self.plant.as_ref(), &self.held);
+        if let ControlBlock::Sampled(l) = &self.control {
+            row.log = l.log;
+        }
+        sink.row(&row)?;
+        let cuff_force_n = if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 };
+        // The integrator's first stage is s0 unless coupled mechanics now see another cuff force.
+        self.reuse_first = self.plant.coupled().is_none() || self.held.cuff_force_n == cuff_force_n;
+        self.held.cuff_force_n = cuff_force_n;
+        Ok(s0)
+    }
+
+    /// Integrate the hydraulic (and predictor, coupled knee, continuous controller) states over
+    /// the step from `t`, in as many substeps as their stiffness needs.
+    fn integrate(&mut self, t: f64, s0: &stage::Stage) -> Result<()> {
+        let n = self.substeps(t, s0.force_rate_n_per_s)?;
+        let h = self.sc.dt_s / n as f64;
+        let mut x = std::mem::take(&mut self.packed);
+        let mut work = std::mem::take(&mut self.work);
+        let mut k1 = std::mem::take(&mut self.scratch_k1);
+        let reuse_first = self.reuse_first;
+        self.state.pack_into(&mut x);
+        x[PLANT_LEN..].copy_from_slice(&self.controller_state);
+        let d = self.dynamics();
+        let (plant, held) = (self.plant.as_ref(), &self.held);
+        let f = |tau: f64, xs: &[f64], dx: &mut [f64]| {
+            let (xp, xc) = xs.split_at(PLANT_LEN);
+            let (dp, dc) = dx.split_at_mut(PLANT_LEN);
+            d.evaluate(tau, &State::unpack(xp), xc, dc, plant, held).derivative.pack_into(dp);
+        };
+        for i in 0..n {
+            let ti = t + i as f64 * h;
+            if i == 0 && reuse_first {
+                self.sc.integrator.step_in_place(ti, h, &mut x, &self.first, &mut work, f);
+            } else {
+                f(ti, &x, &mut k1);
+                self.sc.integrator.step_in_place(ti, h, &mut x, &k1, &mut work, f);
+            }
+        }
+        self.state = State::unpack(&x);
+        self.controller_state.copy_from_slice(&x[PLANT_LEN..]);
+        (self.packed, self.work, self.scratch_k1) = (x, work, k1);
+        Ok(())
     }
 
     /// Substeps the hydraulic states need over this step: the local stiffness (force-channel or
@@ -350,8 +589,7 @@ impl Simulation {
             omega = (k_oil / p.effective_mass_kg).sqrt();
         }
         if let (ControlBlock::Continuous(c), true) = (&self.control, self.sc.substep_controller) {
-            let n = self.controller_names.len();
-            let k = c.stiffness_per_s(force_rate_n_per_s, &self.state.controller[..n]);
+            let k = c.stiffness_per_s(force_rate_n_per_s, &self.controller_state);
             if k > real {
                 (real, real_state) = (k, "controller observer (FDO)");
             }
@@ -380,7 +618,7 @@ impl Simulation {
     /// Sensor readings that clipped at full scale, by channel (sampled mode).
     pub fn sensor_clips(&self) -> Vec<(&'static str, usize)> {
         match &self.control {
-            ControlBlock::Sampled { sensors, .. } => sensors.clipped(),
+            ControlBlock::Sampled(l) => l.sensors.clipped(),
             ControlBlock::Continuous(_) => Vec::new(),
         }
     }
@@ -393,9 +631,11 @@ impl Simulation {
 
     /// Stop on a non-finite state or an implausible spool.
     fn check(&self, t: f64) -> Result<()> {
-        let bad = self.state.first_non_finite(&self.controller_names).or_else(|| match &self.control {
-            ControlBlock::Sampled { ctrl, .. } => ctrl.first_non_finite(),
-            ControlBlock::Continuous(_) => None,
+        let bad = self.state.first_non_finite(&self.controller_state, &self.controller_names).or_else(|| {
+            match &self.control {
+                ControlBlock::Sampled(l) => l.ctrl.as_ref().and_then(|c| c.first_non_finite()),
+                ControlBlock::Continuous(_) => None,
+            }
         });
         if let Some((state, value)) = bad {
             return Err(Error::Diverged { time_s: t, state, value });
@@ -411,56 +651,40 @@ impl Simulation {
 
     /// Record the final state, evaluated the way the next step would see it.
     pub fn finish(&mut self, sink: &mut dyn RecordSink) -> Result<()> {
-        let t_end = self.k as f64 * self.sc.dt_s;
-        self.take_predictor();
+        let t_end = self.t_s();
+        self.begin();
         let d = self.dynamics();
-        let s = d.evaluate(t_end, &self.state, self.plant.as_ref(), &self.held);
+        let mut dc = vec![0.0; self.controller_state.len()];
+        let s = d.evaluate(t_end, &self.state, &self.controller_state, &mut dc, self.plant.as_ref(), &self.held);
         let w1 = self.interaction(t_end, s.force_rate_n_per_s);
-        sink.row(&d.row(t_end, &self.state, &s, w1, self.plant.as_ref(), &self.held))
+        let mut row = d.row(t_end, &self.state, &s, w1, self.plant.as_ref(), &self.held);
+        if let ControlBlock::Sampled(l) = &self.control {
+            row.log = l.log;
+        }
+        sink.row(&row)
     }
 }
 
-/// Run a resolved scenario to the end, streaming rows to `sink`; returns the summary.
-pub fn run(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<Summary> {
-    run_with_design(sc, sink).map(|(s, _)| s)
-}
-
-/// Like [`run`], also returning the controller's design figures (sampled controllers that
-/// compute gains at start), for `summary.json`.
-pub fn run_with_design(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<(Summary, Option<serde_json::Value>)> {
-    let start = std::time::Instant::now();
-    let mut sim = Simulation::new(sc.clone())?;
-    let layout = sim.layout();
-    let mut metrics = SummaryBuilder::new(sc.metrics);
-    let mut walking = layout.contact.then(|| {
-        let data = sc.leg().and_then(|l| l.body.as_ref()).and_then(|b| match &b.targets {
-            crate::plant::BodyTargets::Walking(w) => Some(w.clone()),
-            crate::plant::BodyTargets::Pose(_) => None,
-        });
-        WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data)
-    });
-    let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut metrics, sink];
-    if let Some(w) = walking.as_mut() {
-        sinks.push(w);
+impl SampledLoop {
+    /// The sensors and hold of a sampled run every `every` steps, with `ctrl` (None: the caller
+    /// gives the commands).
+    fn new(sc: &Model, every: usize, ctrl: Option<Box<dyn DiscreteController>>) -> Result<Self> {
+        let log_names = ctrl.as_ref().map(|c| c.log_names()).unwrap_or_default();
+        if log_names.len() > MAX_LOGGED {
+            return Err(Error::input(
+                &sc.source_name,
+                "controller",
+                format!("the controller logs {} channels, at most {MAX_LOGGED}", log_names.len()),
+            ));
+        }
+        Ok(Self {
+            ctrl,
+            sensors: SampledSensors::new(&sc.sensors, sc.sample_period_s, sc.seed),
+            hold: ZeroOrderHold::new(every, ControlOutput::default()),
+            awaiting: None,
+            sampled: None,
+            log_names,
+            log: [0.0; MAX_LOGGED],
+        })
     }
-    let mut tee = Tee(sinks);
-    tee.start(&layout)?;
-    for _ in 0..sc.steps {
-        sim.step(&mut tee)?;
-    }
-    sim.finish(&mut tee)?;
-    drop(tee);
-    let mut summary = metrics.finish(start.elapsed().as_secs_f64());
-    summary.contact = walking.map(|w| w.finish());
-    summary.engine = sc.leg().map(|l| if l.reduced.is_some() { "reduced" } else { "rapier" }.to_string());
-    (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
-    summary.sensor_clipped_readings = sim.sensor_clips().into_iter().map(|(k, n)| (k.to_string(), n)).collect();
-    Ok((summary, sim.controller_design()))
-}
-
-/// Run and keep the whole record in memory (tests, the library API).
-pub fn run_in_memory(sc: &Arc<Model>) -> Result<(Summary, MemoryRecord)> {
-    let mut rec = MemoryRecord::default();
-    let summary = run(sc, &mut rec)?;
-    Ok((summary, rec))
 }

@@ -1,11 +1,11 @@
 //! The immutable model of a run (MuJoCo's `mjModel`): every block's parameters, resolved,
 //! with shared leg models. Built once by `scenario::resolve`; the loop only reads it.
 
-use super::Integrator;
-use crate::control::{ControllerParams, DtZnn, KneePd, NominalModel};
+use crate::control::{ControllerSetup, KneePd, NominalModel, ValveLimit};
 use crate::disturbance::Disturbances;
 use crate::human::HumanParams;
 use crate::hydraulics::{ActuatorParams, Cylinder, FrictionParams};
+use crate::integrator::Integrator;
 use crate::metrics::MetricSettings;
 use crate::plant::{LegSetup, PlantSetup};
 use crate::reference::ForceReference;
@@ -28,6 +28,8 @@ pub struct Model {
     pub seed: u64,
     /// Controller sampling: every this many steps (None = continuous).
     pub sample_every: Option<usize>,
+    /// Controller sample period (s), 0 = continuous.
+    pub sample_period_s: f64,
     /// The plant.
     pub plant: PlantSetup,
     /// The desired force (and knee trajectory).
@@ -36,16 +38,17 @@ pub struct Model {
     pub knee_pd: Option<KneePd>,
     /// The cylinder of the plant.
     pub cylinder: Cylinder,
-    /// The controller's settings.
-    pub controller: ControllerParams,
+    /// The controller, resolved (one tagged value per kind; `dtznn` designed, a plugin
+    /// loaded); a run builds its controller from it unless the caller brings one.
+    pub controller: ControllerSetup,
     /// The controller's nominal model.
     pub nominal: NominalModel,
-    /// The designed `dtznn` controller (gains computed once), cloned by every run.
-    pub dtznn: Option<DtZnn>,
     /// Piston friction.
     pub friction: FrictionParams,
     /// Actuator mode and limits.
     pub actuator: ActuatorParams,
+    /// The valve's command limit (from `actuator.valve_command_limit`).
+    pub valve_limit: ValveLimit,
     /// Human-robot interaction.
     pub human: HumanParams,
     /// Injected disturbances.

@@ -2,14 +2,14 @@
 
 use super::Model;
 use super::{Held, State};
-use crate::control::{ControlOutput, Controller, ValveLimit};
+use crate::control::{ControlOutput, Controller};
 use crate::disturbance::{CHANNEL_FORCE_ACCEL, CHANNEL_FORCE_RATE, CHANNEL_SPOOL};
 use crate::human::HumanMode;
-use crate::hydraulics::{ActuatorMode, ForceChannelInput, ForceSource, PistonKinematics};
+use crate::hydraulics::{ActuatorMode, ForceChannelInput, ForceRates, ForceSource, PistonKinematics};
 use crate::plant::{CoupledMechanics, PistonMotion, PistonPredictor, Plant};
 use crate::record::Row;
 use crate::reference::RefSample;
-use crate::sensors::Truth;
+use crate::sensors::Measurement;
 
 /// Everything one evaluation produces.
 pub(super) struct Stage {
@@ -83,15 +83,15 @@ impl Dynamics<'_> {
         PistonMotion { position_m: s.piston.position_m, velocity_m_s: v_eff, accel_m_s2: a }
     }
 
-    /// The force-channel inputs other than `u`, the raw x2 = dF_L/dt, d(d_F)/dt and the mean
-    /// chamber pressure rate at time `t`.
+    /// The force-channel inputs other than `u`, the cylinder's force rates and d(d_F)/dt at
+    /// time `t`.
     fn environment(
         &self,
         t: f64,
         s: &State,
         piston: &PistonMotion,
         r: &RefSample,
-    ) -> (ForceChannelInput, f64, f64, f64) {
+    ) -> (ForceChannelInput, ForceRates, f64) {
         let f = self.sc;
         let (dist, seed) = (&f.disturbance, f.seed);
         let (d_f, d_f_rate) = dist.force_rate.value_and_rate(t, seed, CHANNEL_FORCE_RATE);
@@ -103,7 +103,8 @@ impl Dynamics<'_> {
             spool_dist_m_per_s: dist.spool.value(t, seed, CHANNEL_SPOOL),
         };
         let kin = PistonKinematics { position_m: piston.position_m, velocity_m_s: piston.velocity_m_s };
-        let (x2, d_mean) = self.sc.cylinder.force_rate(&s.hyd, &kin, &inp);
+        let rates = self.sc.cylinder.rates(&s.hyd, &kin, &inp);
+        let x2 = rates.raw_n_per_s;
         let mut d_acc = dist.force_accel.value(t, seed, CHANNEL_FORCE_ACCEL)
             + dist.state_gain_force * s.hyd.force_n
             + dist.state_gain_force_rate * x2;
@@ -111,20 +112,20 @@ impl Dynamics<'_> {
             d_acc += f.human.interaction(s.hyd.force_n - r.value, x2 - r.rate);
         }
         inp.force_accel_dist_n_per_s2 = d_acc;
-        (inp, x2, d_f_rate, d_mean)
+        (inp, rates, d_f_rate)
     }
 
     /// What ideal sensors read: the plant's state at `t`, the load cell's rate `x2`, and the
     /// piston velocity the oil column experiences (with a predictor: the effective velocity of
     /// the plant's integrator, including its substep lead; what a velocity sensor on the real
     /// cylinder would measure).
-    pub fn truth(&self, s: &State, x2: f64, plant: &dyn Plant, t: f64, held: &Held) -> Truth {
+    pub fn truth(&self, s: &State, x2: f64, plant: &dyn Plant, t: f64, held: &Held) -> Measurement {
         let p = plant.piston_at(t);
         let v = match held.predictor.as_ref() {
             Some(_) => self.piston(t, s, plant, held).velocity_m_s,
             None => p.velocity_m_s,
         };
-        Truth {
+        Measurement {
             force_n: s.hyd.force_n,
             force_rate_n_per_s: x2,
             spool_m: s.hyd.spool_m,
@@ -136,8 +137,17 @@ impl Dynamics<'_> {
         }
     }
 
-    /// Evaluate the continuous dynamics at (t, s) with what is held over the step.
-    pub fn evaluate(&self, t: f64, s: &State, plant: &dyn Plant, held: &Held) -> Stage {
+    /// Evaluate the continuous dynamics at (t, s) and the continuous controller's state `ctrl`
+    /// with what is held over the step; the controller's state derivative goes to `dctrl`.
+    pub fn evaluate(
+        &self,
+        t: f64,
+        s: &State,
+        ctrl: &[f64],
+        dctrl: &mut [f64],
+        plant: &dyn Plant,
+        held: &Held,
+    ) -> Stage {
         let sc = self.sc;
         let pred = held.predictor.as_ref();
         let coupled = pred.and(plant.coupled()).map(|c| self.coupled(t, s, c, held));
@@ -152,8 +162,8 @@ impl Dynamics<'_> {
             (None, None) => plant.piston_at(t),
         };
         let r = self.reference_at(t, held);
-        let (mut inp, x2_raw, d_f_rate, d_mean) = self.environment(t, s, &piston, &r);
-        let x2 = sc.cylinder.rate_at_bound(&s.hyd, x2_raw);
+        let (mut inp, rates, d_f_rate) = self.environment(t, s, &piston, &r);
+        let x2 = rates.load_cell_n_per_s;
         // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
         // da/dt = (dF_L/dt - F_f'(v)*a)/m_eff: the piston acceleration the force ODE
         // experiences, so it is what an ideal sensor reports.
@@ -162,7 +172,7 @@ impl Dynamics<'_> {
             let a_dot = (x2 - friction_slope * a) / p.effective_mass_kg;
             piston.accel_m_s2 = a + p.velocity_lead_s * a_dot;
         }
-        let y = Truth {
+        let y = Measurement {
             force_n: s.hyd.force_n,
             force_rate_n_per_s: x2,
             spool_m: s.hyd.spool_m,
@@ -172,20 +182,15 @@ impl Dynamics<'_> {
             // Coupled mechanics: the knee at this stage; otherwise the plant's at the step start.
             knee_rad: if coupled.is_some() { s.knee.angle_rad } else { plant.knee_rad() },
             knee_rate_rad_s: if coupled.is_some() { s.knee.rate_rad_s } else { plant.knee_rate_rad_s() },
-        }
-        .ideal();
+        };
         let mut derivative = State::default();
         let out = match (held.output, self.controller) {
             (Some(o), _) => o,
-            (None, Some(c)) => {
-                let n = c.state_len();
-                let limit = ValveLimit(sc.actuator.valve_command_limit);
-                c.output_and_derivatives(t, &r, &y, &s.controller[..n], limit, &mut derivative.controller[..n])
-            }
+            (None, Some(c)) => c.output_and_derivatives(t, &r, &y, ctrl, sc.valve_limit, dctrl),
             (None, None) => ControlOutput::default(),
         };
         inp.valve_command = out.valve_command;
-        derivative.hyd = sc.cylinder.derivatives(&s.hyd, &inp, x2, d_mean);
+        derivative.hyd = sc.cylinder.derivatives(&s.hyd, &inp, &rates);
         match (pred, coupled) {
             (_, Some((m, qdd))) => {
                 derivative.piston.position_m = m.velocity_m_s;
@@ -250,6 +255,7 @@ impl Dynamics<'_> {
             ref_knee_deg: self.sc.reference.knee_at(t).map(|k| k.value.to_degrees()),
             leg: plant.leg_row(),
             contact: plant.contact_row(),
+            log: Default::default(),
         }
     }
 }

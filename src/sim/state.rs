@@ -1,7 +1,8 @@
 //! The typed state of the co-simulation loop and its packing for the integrators
-//! (MuJoCo keeps `qpos`/`act` as named slices of one array; so do we, in one place).
+//! (MuJoCo keeps `qpos`/`act` as named slices of one array; so do we, in one place): the
+//! plant-side entries first, then the continuous controller's, sized when the controller is
+//! built.
 
-use crate::control::MAX_CONTROLLER_STATES;
 use crate::hydraulics::HydraulicState;
 
 /// Piston states of the leg's local piston model inside a step (unused for a prescribed piston).
@@ -23,7 +24,8 @@ pub struct KneeState {
     pub rate_rad_s: f64,
 }
 
-/// Everything the loop integrates over a step.
+/// The plant-side states the loop integrates over a step (the continuous controller's state is
+/// a slice beside it).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct State {
     /// Force channel.
@@ -32,16 +34,10 @@ pub struct State {
     pub piston: PistonState,
     /// Coupled knee.
     pub knee: KneeState,
-    /// Continuous controller state (the first `n` entries are used).
-    pub controller: [f64; MAX_CONTROLLER_STATES],
 }
 
-/// Number of plant-side entries in the packed vector.
-const PLANT_LEN: usize = 8;
-/// Length of the packed state vector.
-pub const PACKED_LEN: usize = PLANT_LEN + MAX_CONTROLLER_STATES;
-/// The flat vector the integrators see.
-pub type Packed = [f64; PACKED_LEN];
+/// Number of plant-side entries in the packed vector; the controller's follow.
+pub const PLANT_LEN: usize = 8;
 
 const FORCE: usize = 0;
 const SPOOL: usize = 1;
@@ -65,9 +61,8 @@ const NAMES: [&str; PLANT_LEN] = [
 ];
 
 impl State {
-    /// Flatten for the integrator.
-    pub fn pack(&self) -> Packed {
-        let mut x = [0.0; PACKED_LEN];
+    /// Write the plant-side entries into the first [`PLANT_LEN`] of `x`.
+    pub fn pack_into(&self, x: &mut [f64]) {
         x[FORCE] = self.hyd.force_n;
         x[SPOOL] = self.hyd.spool_m;
         x[ACCEL_DIST] = self.hyd.accel_dist_n_per_s;
@@ -76,14 +71,10 @@ impl State {
         x[MEAN_PRESSURE] = self.hyd.mean_pressure_pa;
         x[KNEE_ANGLE] = self.knee.angle_rad;
         x[KNEE_RATE] = self.knee.rate_rad_s;
-        x[PLANT_LEN..].copy_from_slice(&self.controller);
-        x
     }
 
-    /// Back from the integrator's vector.
-    pub fn unpack(x: &Packed) -> Self {
-        let mut controller = [0.0; MAX_CONTROLLER_STATES];
-        controller.copy_from_slice(&x[PLANT_LEN..]);
+    /// The plant-side state from the first [`PLANT_LEN`] entries of a packed vector.
+    pub fn unpack(x: &[f64]) -> Self {
         State {
             hyd: HydraulicState {
                 force_n: x[FORCE],
@@ -93,20 +84,20 @@ impl State {
             },
             piston: PistonState { position_m: x[PISTON_POSITION], velocity_m_s: x[PISTON_VELOCITY] },
             knee: KneeState { angle_rad: x[KNEE_ANGLE], rate_rad_s: x[KNEE_RATE] },
-            controller,
         }
     }
 
-    /// The first non-finite entry, with its name (`controller_names` name the controller's
-    /// entries), in packed order.
-    pub fn first_non_finite(&self, controller_names: &[String]) -> Option<(String, f64)> {
-        let x = self.pack();
-        let i = x.iter().position(|v| !v.is_finite())?;
-        let name = match NAMES.get(i) {
-            Some(n) => n.to_string(),
-            None => controller_names.get(i - PLANT_LEN).cloned().unwrap_or_else(|| format!("controller_state_{i}")),
-        };
-        Some((name, x[i]))
+    /// The first non-finite entry of this state and then of the controller state `controller`
+    /// (its entries named by `controller_names`), with its name.
+    pub fn first_non_finite(&self, controller: &[f64], controller_names: &[String]) -> Option<(String, f64)> {
+        let mut x = [0.0; PLANT_LEN];
+        self.pack_into(&mut x);
+        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+            return Some((NAMES[i].to_string(), x[i]));
+        }
+        let i = controller.iter().position(|v| !v.is_finite())?;
+        let name = controller_names.get(i).cloned().unwrap_or_else(|| format!("controller_state_{i}"));
+        Some((name, controller[i]))
     }
 }
 
@@ -121,12 +112,13 @@ mod tests {
         s.hyd.mean_pressure_pa = 2.0;
         s.piston.velocity_m_s = 3.0;
         s.knee.rate_rad_s = 5.0;
-        s.controller[2] = 4.0;
-        assert_eq!(State::unpack(&s.pack()), s);
-        s.controller[1] = f64::NAN;
-        let (name, _) = s.first_non_finite(&["z".into(), "w1".into()]).unwrap();
+        let mut x = [0.0; PLANT_LEN];
+        s.pack_into(&mut x);
+        assert_eq!(State::unpack(&x), s);
+        let ctrl = [0.0, f64::NAN];
+        let (name, _) = s.first_non_finite(&ctrl, &["z".into(), "w1".into()]).unwrap();
         assert_eq!(name, "w1");
         s.piston.position_m = f64::INFINITY;
-        assert_eq!(s.first_non_finite(&[]).unwrap().0, "predicted_piston_m");
+        assert_eq!(s.first_non_finite(&ctrl, &[]).unwrap().0, "predicted_piston_m");
     }
 }

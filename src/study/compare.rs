@@ -4,7 +4,6 @@ use crate::error::{Error, Result};
 use crate::metrics::Band;
 use crate::record::NullSink;
 use crate::scenario::{Resources, Scenario};
-use crate::sim;
 use serde::Serialize;
 
 /// One of the paper's cases with its published figures.
@@ -134,7 +133,7 @@ pub fn run_cases(base: &Scenario, extra_sets: &[String]) -> Result<Vec<CaseResul
                 // The cases are 200 N sines: a band relative to the peak reference is relative to 200 N.
                 Band::FractionOfPeakReference(f) => f * 200.0,
             };
-            Ok(match sim::run(sc, &mut NullSink) {
+            Ok(match crate::session::run(sc, &mut NullSink) {
                 Ok(m) => CaseResult {
                     case: *c,
                     max_abs_force_error_n: Some(m.max_abs_force_error_n),

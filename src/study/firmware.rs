@@ -104,7 +104,7 @@ pub fn run_table(extra: &[String]) -> Result<Vec<Row>> {
     let cells: Vec<Cell> = models
         .par_iter()
         .zip(jobs.par_iter())
-        .map(|(m, &(_, j))| cell(COLUMNS[j].0, crate::sim::run(m, &mut NullSink)))
+        .map(|(m, &(_, j))| cell(COLUMNS[j].0, crate::session::run(m, &mut NullSink)))
         .collect::<Result<_>>()?;
     Ok(CASES
         .iter()

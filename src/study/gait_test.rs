@@ -11,7 +11,6 @@ use crate::error::Result;
 use crate::metrics::Summary;
 use crate::record::MemoryRecord;
 use crate::scenario::{Resources, Scenario};
-use crate::sim;
 
 /// The shipped comfortable-walking scenario (`assets/scenarios/gait_walk.toml`).
 pub const GAIT_WALK_TOML: &str = include_str!("../../assets/scenarios/gait_walk.toml");
@@ -73,7 +72,7 @@ impl GaitTest {
     /// Run it.
     pub fn run(&self) -> Result<GaitReport> {
         let sc = self.scenario()?.resolve(&Resources::new())?;
-        let (summary, record) = sim::run_in_memory(&sc.model)?;
+        let (summary, record) = crate::session::run_in_memory(&sc.model)?;
         Ok(GaitReport { summary, record })
     }
 }

@@ -80,7 +80,7 @@ pub struct MemoryRun {
     /// `summary.json`'s content.
     pub summary_json: serde_json::Value,
     /// Column names, as in `timeseries.csv`'s header.
-    pub columns: Vec<&'static str>,
+    pub columns: Vec<String>,
     /// The values, row after row (`rows x columns.len()`).
     pub values: Vec<f64>,
 }
@@ -88,7 +88,7 @@ pub struct MemoryRun {
 /// Run `sc` in memory: the same figures and columns as [`run_into`] writes, no files.
 pub fn run_to_memory(sc: &ResolvedScenario) -> Result<MemoryRun> {
     let mut rec = crate::record::MemoryRecord::default();
-    let (summary, design) = crate::sim::run_with_design(&sc.model, &mut rec)?;
+    let (summary, design) = crate::session::run_with_design(&sc.model, &mut rec)?;
     let criteria = check_criteria(&sc.file.criteria, &summary);
     let file = SummaryFile::new(sc, &summary, &criteria, design);
     let summary_json =
@@ -115,7 +115,7 @@ pub fn run_into(
     if let Some(e) = extra {
         sinks.push(e);
     }
-    let (summary, design) = crate::sim::run_with_design(&sc.model, &mut Tee(sinks))?;
+    let (summary, design) = crate::session::run_with_design(&sc.model, &mut Tee(sinks))?;
     csv.finish()?;
     let criteria = check_criteria(&sc.file.criteria, &summary);
     let file = SummaryFile::new(sc, &summary, &criteria, design);

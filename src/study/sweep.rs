@@ -303,7 +303,7 @@ fn run_one(base: &Scenario, plan: &Plan, i: usize, res: &Resources, run_dir: Opt
             std::fs::create_dir_all(&d).map_err(|e| Error::Write { path: d.clone(), message: e.to_string() })?;
             super::run_into(&sc, &d, &sc.source_name, None).map(|r| r.summary)
         }
-        None => crate::sim::run(&sc.model, &mut crate::record::NullSink),
+        None => crate::session::run(&sc.model, &mut crate::record::NullSink),
     };
     Ok(match result {
         Ok(summary) => {

@@ -1,4 +1,6 @@
-//! Fixed-step explicit Runge-Kutta integrators over small fixed-size state vectors.
+//! Fixed-step explicit Runge-Kutta integrators (the ground floor: nothing else in the crate is
+//! needed here). The co-simulation loop integrates its state in place over a slice with
+//! scratch it allocates once; small fixed-size states (the reduced leg's knee) use arrays.
 
 use serde::{Deserialize, Serialize};
 
@@ -35,7 +37,8 @@ impl Integrator {
         }
     }
 
-    /// One step of size `dt_s` from `(t_s, x)`; `f(t, x)` returns dx/dt.
+    /// One step of size `dt_s` from `(t_s, x)` over a fixed-size state; `f(t, x)` returns
+    /// dx/dt.
     pub fn step<const N: usize>(
         &self,
         t_s: f64,
@@ -57,25 +60,74 @@ impl Integrator {
         k1: &[f64; N],
         mut f: impl FnMut(f64, &[f64; N]) -> [f64; N],
     ) -> [f64; N] {
+        let mut out = *x;
+        let mut work = [[0.0; N]; SCRATCH_VECTORS];
+        self.step_in_place(t_s, dt_s, &mut out, k1, work.as_flattened_mut(), |t, xs, dx| {
+            let mut xa = [0.0; N];
+            xa.copy_from_slice(xs);
+            dx.copy_from_slice(&f(t, &xa));
+        });
+        out
+    }
+
+    /// One step of size `dt_s` from `t_s` over a state of any length, in place: `x` holds the
+    /// state at `t_s` on entry and at `t_s + dt_s` on return; `k1` is the slope at `(t_s, x)`;
+    /// `f(t, x, dx)` writes dx/dt into `dx`. `work` is scratch of at least
+    /// [`SCRATCH_VECTORS`]` * x.len()` entries (allocated once by the caller, so a step
+    /// allocates nothing).
+    pub fn step_in_place(
+        &self,
+        t_s: f64,
+        dt_s: f64,
+        x: &mut [f64],
+        k1: &[f64],
+        work: &mut [f64],
+        mut f: impl FnMut(f64, &[f64], &mut [f64]),
+    ) {
+        let n = x.len();
         let h = dt_s;
-        let axpy = |x: &[f64; N], a: f64, k: &[f64; N]| -> [f64; N] { std::array::from_fn(|i| x[i] + a * k[i]) };
+        let (k2, rest) = work.split_at_mut(n);
+        let (k3, rest) = rest.split_at_mut(n);
+        let (k4, rest) = rest.split_at_mut(n);
+        let stage = &mut rest[..n];
+        let axpy = |out: &mut [f64], x: &[f64], a: f64, k: &[f64]| {
+            for i in 0..out.len() {
+                out[i] = x[i] + a * k[i];
+            }
+        };
         match self {
-            Integrator::Euler => axpy(x, h, k1),
+            Integrator::Euler => {
+                for i in 0..n {
+                    x[i] += h * k1[i];
+                }
+            }
             Integrator::Ode3 => {
                 // Bogacki-Shampine: c = [0, 1/2, 3/4], b = [2/9, 1/3, 4/9].
-                let k2 = f(t_s + 0.5 * h, &axpy(x, 0.5 * h, k1));
-                let k3 = f(t_s + 0.75 * h, &axpy(x, 0.75 * h, &k2));
-                std::array::from_fn(|i| x[i] + h * (2.0 / 9.0 * k1[i] + 1.0 / 3.0 * k2[i] + 4.0 / 9.0 * k3[i]))
+                axpy(stage, x, 0.5 * h, k1);
+                f(t_s + 0.5 * h, stage, k2);
+                axpy(stage, x, 0.75 * h, k2);
+                f(t_s + 0.75 * h, stage, k3);
+                for i in 0..n {
+                    x[i] += h * (2.0 / 9.0 * k1[i] + 1.0 / 3.0 * k2[i] + 4.0 / 9.0 * k3[i]);
+                }
             }
             Integrator::Rk4 => {
-                let k2 = f(t_s + 0.5 * h, &axpy(x, 0.5 * h, k1));
-                let k3 = f(t_s + 0.5 * h, &axpy(x, 0.5 * h, &k2));
-                let k4 = f(t_s + h, &axpy(x, h, &k3));
-                std::array::from_fn(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+                axpy(stage, x, 0.5 * h, k1);
+                f(t_s + 0.5 * h, stage, k2);
+                axpy(stage, x, 0.5 * h, k2);
+                f(t_s + 0.5 * h, stage, k3);
+                axpy(stage, x, h, k3);
+                f(t_s + h, stage, k4);
+                for i in 0..n {
+                    x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+                }
             }
         }
     }
 }
+
+/// Scratch vectors [`Integrator::step_in_place`] needs, per state entry.
+pub const SCRATCH_VECTORS: usize = 4;
 
 #[cfg(test)]
 mod tests {

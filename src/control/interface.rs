@@ -1,0 +1,202 @@
+//! The controller contracts: a continuous-time block ([`Controller`], evaluated at every
+//! integrator stage) and a sampled one ([`DiscreteController`], called once per sample period
+//! on the sensor readings, its output held). Every controller from outside the crate (a Rust
+//! trait object, a Python callback, a C plugin) is a [`DiscreteController`].
+
+use crate::hydraulics::Coefficients;
+use crate::reference::RefSample;
+pub use crate::sensors::{AdcCounts, Measurement};
+use serde::Serialize;
+
+/// What a controller outputs besides the command, for logging.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ControlOutput {
+    /// Valve command u.
+    pub valve_command: f64,
+    /// The controller's estimate of the lumped disturbance on dx2/dt (N/s^2):
+    /// `g_hat + D_hat` for ARBFNN-FDO-ZNN, 0 for controllers without an estimator.
+    pub disturbance_estimate_n_per_s2: f64,
+    /// The RBF network's part of it, `g_hat` (N/s^2).
+    pub rbf_output_n_per_s2: f64,
+    /// True when the command was clipped by the valve limit: controllers stop adapting
+    /// (conditional integration, the anti-windup of the RBF weights).
+    pub saturated: bool,
+}
+
+/// A force controller. See the module doc for the evaluation contract.
+pub trait Controller: Send + Sync {
+    /// Short name, as in the scenario's `controller.kind`.
+    fn kind(&self) -> &'static str;
+    /// Names of the internal states, in order (used in divergence reports and CSV headers).
+    fn state_names(&self) -> Vec<String>;
+    /// Number of internal states (any number; the loop sizes its state when the controller is
+    /// built); called at every stage, so a controller with states should give it without
+    /// building the names.
+    fn state_len(&self) -> usize {
+        self.state_names().len()
+    }
+    /// Initial internal state from the first measurement.
+    fn init(&self, y: &Measurement, r: &RefSample, s: &mut [f64]);
+    /// Control output at time `t_s` (pure).
+    fn output(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64]) -> ControlOutput;
+    /// Time derivative of the internal state (pure). `u` is the output just computed.
+    fn derivatives(&self, t_s: f64, r: &RefSample, y: &Measurement, s: &[f64], u: &ControlOutput, ds: &mut [f64]);
+    /// [`Self::output`] clipped by `limit`, then [`Self::derivatives`] with it: one integrator
+    /// stage. A controller whose output and derivatives share terms computes them once here;
+    /// the result must equal the two calls'.
+    fn output_and_derivatives(
+        &self,
+        t_s: f64,
+        r: &RefSample,
+        y: &Measurement,
+        s: &[f64],
+        limit: ValveLimit,
+        ds: &mut [f64],
+    ) -> ControlOutput {
+        let o = limit.apply(self.output(t_s, r, y, s));
+        self.derivatives(t_s, r, y, s, &o, ds);
+        o
+    }
+    /// Largest local rate (1/s) of the internal state's own dynamics at force rate
+    /// `force_rate_n_per_s` (N/s): the loop substeps the continuous controller when it would
+    /// outrun the integrator. Default 0 (not stiff).
+    fn stiffness_per_s(&self, _force_rate_n_per_s: f64, _s: &[f64]) -> f64 {
+        0.0
+    }
+
+    /// Sampled mode: advance the internal state over one sample period `ts_s` after the
+    /// output `u` was computed from the sample. Default: forward Euler on [`Self::derivatives`],
+    /// which is what simple firmware does. `scratch` has the length of `s`.
+    #[allow(clippy::too_many_arguments)]
+    fn discrete_update(
+        &self,
+        t_s: f64,
+        ts_s: f64,
+        r: &RefSample,
+        y: &Measurement,
+        s: &mut [f64],
+        u: &ControlOutput,
+        scratch: &mut [f64],
+    ) {
+        self.derivatives(t_s, r, y, s, u, scratch);
+        for (x, d) in s.iter_mut().zip(scratch.iter()) {
+            *x += ts_s * d;
+        }
+    }
+}
+
+/// The controller's nominal model: the parts of the paper's Eq. 5 it inverts.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct NominalModel {
+    /// Nominal coefficients n1..n3, tau, k_s.
+    pub c: Coefficients,
+}
+
+impl NominalModel {
+    /// Nominal spool rate dx3/dt = (k_s*u - x3)/tau (m/s) for command `u` at spool `x3`.
+    pub fn spool_rate(&self, u: f64, spool_m: f64) -> f64 {
+        (self.c.k_s * u - spool_m) / self.c.tau_s
+    }
+
+    /// Nominal dx2/dt without disturbance: n1*dx3/dt - n3*x2 - n2*xc_ddot (N/s^2).
+    pub fn force_accel(&self, u: f64, y: &Measurement) -> f64 {
+        self.c.n1 * self.spool_rate(u, y.spool_m) - self.c.n3 * y.force_rate_n_per_s - self.c.n2 * y.piston_accel_m_s2
+    }
+
+    /// The valve command that makes the nominal dx2/dt equal `accel_wanted` (N/s^2):
+    /// `u = tau/(n1*k_s) * [accel_wanted + n3*x2 + n2*xc_ddot + n1*x3/tau]`.
+    pub fn invert(&self, accel_wanted: f64, y: &Measurement) -> f64 {
+        let c = &self.c;
+        c.tau_s / (c.n1 * c.k_s)
+            * (accel_wanted + c.n3 * y.force_rate_n_per_s + c.n2 * y.piston_accel_m_s2 + c.n1 * y.spool_m / c.tau_s)
+    }
+}
+
+/// The valve command limit |u| <= limit (0 = none). Controllers are told when it clips, so
+/// they stop adapting (anti-windup).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ValveLimit(pub f64);
+
+impl ValveLimit {
+    /// Clip the command and mark the output saturated when it was clipped.
+    pub fn apply(&self, mut o: ControlOutput) -> ControlOutput {
+        let lim = self.0;
+        if lim > 0.0 && o.valve_command.abs() > lim {
+            o.valve_command = o.valve_command.clamp(-lim, lim);
+            o.saturated = true;
+        }
+        o
+    }
+}
+
+/// What a sampled controller gets at each sample instant: the public interface of every
+/// controller in the loop (see the README's "Your controller" for the table of readings, with
+/// their units, sampling and quantisation).
+#[derive(Debug, Clone, Copy)]
+pub struct SampleInput {
+    /// Sample instant t_k (s).
+    pub t_s: f64,
+    /// Sample period (s).
+    pub period_s: f64,
+    /// The readings at t_k, after noise, A/D, delay and the firmware differences.
+    pub y: Measurement,
+    /// Raw A/D counts of the readings (quantised channels only): `y.<channel> = counts * lsb`.
+    pub counts: AdcCounts,
+    /// Desired force (N) and its first and second derivatives (N/s, N/s^2) at t_k; on a gait
+    /// it includes the cascade's outer knee loop, computed from the same readings.
+    pub r: RefSample,
+    /// Desired force and derivatives at t_{k+1} = t_k + period_s (one-step preview of a known
+    /// reference; the outer knee loop's part is held).
+    pub r_next: RefSample,
+    /// The valve's command limit |u| <= limit (0 = none): the actuator clips any command to it.
+    pub valve_limit: ValveLimit,
+}
+
+/// Why a sampled controller stops the run (a C plugin's stop status, a failing callback).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlStop {
+    /// What the controller said.
+    pub message: String,
+}
+
+/// A controller that runs once per sample period on the readings and holds its output
+/// (zero-order hold): the built-in firmware controllers, and every controller from outside the
+/// crate (put one in a run with [`crate::sim::Simulation::with_controller`] or
+/// [`crate::study::run_with_controller`]).
+pub trait DiscreteController: Send {
+    /// Short name for reports (the built-in ones use their `controller.kind`).
+    fn kind(&self) -> &str;
+    /// One sample: read, compute, advance the internal state; returns the output to hold. The
+    /// actuator clips the command to the valve limit (and marks the output saturated) whatever
+    /// the controller returns. An error stops the run (exit 3, the message names the time).
+    fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop>;
+    /// The first non-finite internal state with its name, if any (divergence reports).
+    fn first_non_finite(&self) -> Option<(String, f64)> {
+        None
+    }
+    /// Design figures computed at start (gains, poles) for `summary.json`; None if none.
+    fn design(&self) -> Option<serde_json::Value> {
+        None
+    }
+    /// Names of the extra channels the controller logs (columns `log_<name>` of
+    /// `timeseries.csv`, at most [`MAX_LOGGED`]); fixed for the run.
+    fn log_names(&self) -> Vec<String> {
+        Vec::new()
+    }
+    /// The logged values of the last update, in [`Self::log_names`] order.
+    fn log_values(&self, _out: &mut [f64]) {}
+    /// How many samples the controller flagged with a warning so far (a C plugin's warning
+    /// status), and the last warning's text.
+    fn warnings(&self) -> (usize, Option<String>) {
+        (0, None)
+    }
+}
+
+pub use crate::record::MAX_LOGGED;
+
+impl ControlOutput {
+    /// An output with valve command `u` and nothing else.
+    pub fn command(u: f64) -> Self {
+        Self { valve_command: u, ..Default::default() }
+    }
+}

@@ -1,0 +1,488 @@
+//! A controller in a C shared library (`controller.kind = "plugin"`): the firmware's own code
+//! in the loop, called once per sample period on a struct of readings (the Bladed DISCON
+//! idea, with typed, versioned structs instead of an index-addressed array).
+//!
+//! The ABI is `include/exoleg_controller.h` (a test compiles it and checks every size and
+//! offset against the `#[repr(C)]` structs here):
+//!
+//! ```text
+//! uint32_t exoleg_abi_version(void)          checked first: (major << 16) | minor; the major
+//!                                            must be EXOLEG_ABI_MAJOR
+//! void    *exoleg_create(const ExolegInfo *) one instance per run; NULL = refused parameters
+//! int32_t  exoleg_reset(void *)              before the first sample of a run
+//! int32_t  exoleg_step(void *, const ExolegReadings *, ExolegCommand *)
+//! void     exoleg_destroy(void *)            when the run ends (or fails)
+//! ```
+//! Every struct starts with its size in bytes. Status codes: 0 ok, 1 warning (counted and
+//! reported in `summary.json`, the run goes on), 2 stop this run (exit 3 with the plugin's
+//! message). A plugin keeps no global state: a parallel sweep creates one instance per run,
+//! and instances run on several threads at once (each instance on one thread at a time).
+//! The library is loaded once per process and path; a plugin that crashes takes the process
+//! with it (outputs are written to a temporary folder and renamed only after a run
+//! completes, so they stay whole or absent).
+
+use super::{ControlOutput, ControlStop, DiscreteController, NominalModel, SampleInput, ValveLimit};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::ffi::{c_char, c_void, CStr, CString};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The ABI's major version: a library reporting another major is refused.
+pub const ABI_MAJOR: u32 = 1;
+/// The ABI's minor version (additions at the end of the structs; sizes tell them apart).
+pub const ABI_MINOR: u32 = 0;
+/// Most logged channels a plugin may fill (`ExolegCommand.log`).
+pub const PLUGIN_LOG_LEN: usize = 8;
+/// Bytes of the plugin's message buffer (`ExolegCommand.message`), the terminating NUL included.
+pub const MESSAGE_LEN: usize = 160;
+/// Most parameters a plugin may be given.
+pub const MAX_PARAMS: usize = 256;
+/// Status: the sample is fine.
+pub const STATUS_OK: i32 = 0;
+/// Status: the sample is usable but the plugin warns (counted; the last message is kept).
+pub const STATUS_WARNING: i32 = 1;
+/// Status: stop this run.
+pub const STATUS_STOP: i32 = 2;
+
+/// `[controller.plugin]`: the shared library and its parameters.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PluginParams {
+    /// Path of the shared library (`.so`), looked up next to the scenario file first, then in
+    /// the working directory.
+    pub library: Option<String>,
+    /// Numbers passed to the plugin at creation, by name (`{ kp = 2.0, ki = 10.0 }`).
+    pub params: BTreeMap<String, toml::Value>,
+    /// Names of the channels the plugin logs in `ExolegCommand.log` (columns `log_<name>`), at
+    /// most 8.
+    pub log: Vec<String>,
+    /// SHA-256 of the library; filled in by every run (a later run warns if it changed).
+    pub library_sha256: Option<String>,
+}
+
+impl PluginParams {
+    /// True when nothing is set (the section is left out of `summary.json`).
+    pub fn is_unset(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// The parameters as (name, number) pairs; errors name the key.
+    pub fn numbers(&self) -> Result<Vec<(CString, f64)>, (String, String)> {
+        if self.params.len() > MAX_PARAMS {
+            return Err(("controller.plugin.params".into(), format!("at most {MAX_PARAMS} parameters")));
+        }
+        self.params
+            .iter()
+            .map(|(k, v)| {
+                let key = format!("controller.plugin.params.{k}");
+                let x = match v {
+                    toml::Value::Float(x) => *x,
+                    toml::Value::Integer(i) => *i as f64,
+                    other => return Err((key, format!("must be a number, got {}", other.type_str()))),
+                };
+                if !x.is_finite() {
+                    return Err((key, format!("must be a finite number, got {x}")));
+                }
+                let name = CString::new(k.as_str()).map_err(|_| (key, "the name contains a NUL byte".to_string()))?;
+                Ok((name, x))
+            })
+            .collect()
+    }
+}
+
+/// One parameter as the plugin sees it.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct ExolegParam {
+    /// NUL-terminated name (valid during `exoleg_create` only).
+    pub name: *const c_char,
+    /// Its value.
+    pub value: f64,
+}
+
+/// What a plugin is told at creation.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct ExolegInfo {
+    /// `sizeof(ExolegInfo)`.
+    pub size: u32,
+    /// The host's ABI version, `(major << 16) | minor`.
+    pub abi_version: u32,
+    /// Sample period (s).
+    pub sample_period_s: f64,
+    /// Valve command limit (0 = none); the actuator clips any command to it.
+    pub valve_command_limit: f64,
+    /// The nominal force-ODE coefficients (`controller.nominal` over `[hydraulics]`): n1
+    /// (N/m), n2 (N/m), n3 (1/s), the spool time constant tau (s) and valve gain k_s (m).
+    pub nominal_n1: f64,
+    /// n2 (N/m).
+    pub nominal_n2: f64,
+    /// n3 (1/s).
+    pub nominal_n3: f64,
+    /// tau (s).
+    pub nominal_tau_s: f64,
+    /// k_s (m per unit command).
+    pub nominal_k_s: f64,
+    /// The run's seed.
+    pub seed: u64,
+    /// Number of parameters.
+    pub n_params: u32,
+    /// Reserved (0).
+    pub reserved: u32,
+    /// The parameters (valid during `exoleg_create` only).
+    pub params: *const ExolegParam,
+}
+
+/// The readings of one sample (see the README's table).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ExolegReadings {
+    /// `sizeof(ExolegReadings)`.
+    pub size: u32,
+    /// Bit i set: `counts[i]` holds channel i's raw A/D counts (0 force, 1 spool, 2 piston,
+    /// 3 knee, 4 piston velocity).
+    pub counts_valid: u32,
+    /// Sample instant (s).
+    pub t_s: f64,
+    /// Sample period (s).
+    pub period_s: f64,
+    /// Load cell (N).
+    pub force_n: f64,
+    /// Its firmware difference (N/s).
+    pub force_rate_n_per_s: f64,
+    /// Spool (m; NaN without the sensor).
+    pub spool_m: f64,
+    /// Piston position (m).
+    pub piston_m: f64,
+    /// Piston velocity (m/s).
+    pub piston_velocity_m_s: f64,
+    /// Piston acceleration (m/s^2).
+    pub piston_accel_m_s2: f64,
+    /// Knee flexion (rad).
+    pub knee_rad: f64,
+    /// Knee rate (rad/s).
+    pub knee_rate_rad_s: f64,
+    /// Desired force now (N).
+    pub ref_force_n: f64,
+    /// Its rate (N/s).
+    pub ref_force_rate_n_per_s: f64,
+    /// Its second derivative (N/s^2).
+    pub ref_force_accel_n_per_s2: f64,
+    /// Desired force one sample ahead (N).
+    pub next_ref_force_n: f64,
+    /// Its rate (N/s).
+    pub next_ref_force_rate_n_per_s: f64,
+    /// Its second derivative (N/s^2).
+    pub next_ref_force_accel_n_per_s2: f64,
+    /// Valve command limit (0 = none).
+    pub valve_command_limit: f64,
+    /// Raw A/D counts, by channel (valid where `counts_valid` says).
+    pub counts: [i64; 5],
+}
+
+/// What a plugin returns for one sample.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct ExolegCommand {
+    /// `sizeof(ExolegCommand)`.
+    pub size: u32,
+    /// Reserved (0).
+    pub reserved: u32,
+    /// The valve command u (dimensionless; k_s*u is the commanded spool position in m).
+    pub valve_command: f64,
+    /// The plugin's disturbance estimate (N/s^2), logged; 0 if it has none.
+    pub disturbance_estimate_n_per_s2: f64,
+    /// Logged channels (`controller.plugin.log` names them).
+    pub log: [f64; PLUGIN_LOG_LEN],
+    /// A NUL-terminated message for a warning or stop status.
+    pub message: [c_char; MESSAGE_LEN],
+}
+
+impl Default for ExolegCommand {
+    fn default() -> Self {
+        Self {
+            size: std::mem::size_of::<Self>() as u32,
+            reserved: 0,
+            valve_command: 0.0,
+            disturbance_estimate_n_per_s2: 0.0,
+            log: [0.0; PLUGIN_LOG_LEN],
+            message: [0; MESSAGE_LEN],
+        }
+    }
+}
+
+type AbiFn = unsafe extern "C" fn() -> u32;
+type CreateFn = unsafe extern "C" fn(*const ExolegInfo) -> *mut c_void;
+type ResetFn = unsafe extern "C" fn(*mut c_void) -> i32;
+type StepFn = unsafe extern "C" fn(*mut c_void, *const ExolegReadings, *mut ExolegCommand) -> i32;
+type DestroyFn = unsafe extern "C" fn(*mut c_void);
+
+/// A loaded plugin library (once per process and path; shared by the runs that use it).
+pub struct PluginLibrary {
+    /// Where it was loaded from.
+    pub path: PathBuf,
+    /// Its ABI version as it reported it.
+    pub abi_version: u32,
+    create: CreateFn,
+    reset: ResetFn,
+    step: StepFn,
+    destroy: DestroyFn,
+    // Last: the functions above point into it.
+    _lib: libloading::Library,
+}
+
+impl std::fmt::Debug for PluginLibrary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PluginLibrary").field("path", &self.path).field("abi_version", &self.abi_version).finish()
+    }
+}
+
+impl PluginLibrary {
+    /// Load a library: a regular file, `exoleg_abi_version` checked before anything else, then
+    /// the four entry points. Errors say what is wrong (the caller names the key).
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let meta = std::fs::metadata(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        if !meta.is_file() {
+            return Err(format!("{}: not a regular file", path.display()));
+        }
+        // SAFETY: loading a library runs its initialisers; the user names the library to run
+        // as their controller, which is the point of a plugin (documented).
+        let lib = unsafe { libloading::Library::new(path) }
+            .map_err(|e| format!("{}: cannot load the library: {e}", path.display()))?;
+        let abi_version = {
+            // SAFETY: the symbol's type is the ABI's `uint32_t exoleg_abi_version(void)`.
+            let f = unsafe { lib.get::<AbiFn>(b"exoleg_abi_version\0") }
+                .map_err(|_| format!("{}: no symbol `exoleg_abi_version` (not an exoleg plugin)", path.display()))?;
+            // SAFETY: a C function without arguments.
+            unsafe { f() }
+        };
+        if abi_version >> 16 != ABI_MAJOR {
+            return Err(format!(
+                "{}: ABI version {}.{}, this exoleg speaks {ABI_MAJOR}.{ABI_MINOR} (the major versions must match; rebuild it against include/exoleg_controller.h)",
+                path.display(),
+                abi_version >> 16,
+                abi_version & 0xffff
+            ));
+        }
+        // SAFETY (each `get`): the symbol names and types are the ABI's (the header).
+        let create = *unsafe { lib.get::<CreateFn>(b"exoleg_create\0") }.map_err(|_| missing(path, "exoleg_create"))?;
+        let reset = *unsafe { lib.get::<ResetFn>(b"exoleg_reset\0") }.map_err(|_| missing(path, "exoleg_reset"))?;
+        let step = *unsafe { lib.get::<StepFn>(b"exoleg_step\0") }.map_err(|_| missing(path, "exoleg_step"))?;
+        let destroy =
+            *unsafe { lib.get::<DestroyFn>(b"exoleg_destroy\0") }.map_err(|_| missing(path, "exoleg_destroy"))?;
+        Ok(Self { path: path.to_path_buf(), abi_version, create, reset, step, destroy, _lib: lib })
+    }
+
+    /// The library's file name, for messages.
+    pub fn name(&self) -> String {
+        self.path.file_name().map_or_else(|| self.path.display().to_string(), |n| n.to_string_lossy().into_owned())
+    }
+}
+
+fn missing(path: &Path, symbol: &str) -> String {
+    format!("{}: no symbol `{symbol}`", path.display())
+}
+
+/// What the host tells every instance.
+#[derive(Debug, Clone, Copy)]
+pub struct HostInfo {
+    /// Sample period (s).
+    pub period_s: f64,
+    /// Valve limit.
+    pub limit: ValveLimit,
+    /// The controller's nominal model.
+    pub nominal: NominalModel,
+    /// The run's seed.
+    pub seed: u64,
+}
+
+/// A plugin ready to be instantiated for each run: the library, its parameters, its logs.
+#[derive(Debug)]
+pub struct PluginSetup {
+    lib: Arc<PluginLibrary>,
+    params: Vec<(CString, f64)>,
+    log: Vec<String>,
+    info: HostInfo,
+}
+
+impl PluginSetup {
+    /// Check the parameters and log names of `p` for `lib`; errors name the key.
+    pub fn new(lib: Arc<PluginLibrary>, p: &PluginParams, info: HostInfo) -> Result<Self, (String, String)> {
+        let params = p.numbers()?;
+        if p.log.len() > PLUGIN_LOG_LEN {
+            return Err(("controller.plugin.log".into(), format!("at most {PLUGIN_LOG_LEN} names")));
+        }
+        Ok(Self { lib, params, log: p.log.clone(), info })
+    }
+
+    /// A new instance (`exoleg_create`); an error if the plugin refuses its parameters.
+    pub fn instance(self: &Arc<Self>) -> Result<PluginController, String> {
+        let params: Vec<ExolegParam> =
+            self.params.iter().map(|(n, v)| ExolegParam { name: n.as_ptr(), value: *v }).collect();
+        let c = &self.info.nominal.c;
+        let info = ExolegInfo {
+            size: std::mem::size_of::<ExolegInfo>() as u32,
+            abi_version: (ABI_MAJOR << 16) | ABI_MINOR,
+            sample_period_s: self.info.period_s,
+            valve_command_limit: self.info.limit.0,
+            nominal_n1: c.n1,
+            nominal_n2: c.n2,
+            nominal_n3: c.n3,
+            nominal_tau_s: c.tau_s,
+            nominal_k_s: c.k_s,
+            seed: self.info.seed,
+            n_params: params.len() as u32,
+            reserved: 0,
+            params: params.as_ptr(),
+        };
+        // SAFETY: `info` and the parameters it points to live through the call.
+        let handle = unsafe { (self.lib.create)(&info) };
+        if handle.is_null() {
+            return Err(format!("{}: exoleg_create returned NULL (it refused its parameters)", self.lib.name()));
+        }
+        Ok(PluginController {
+            setup: self.clone(),
+            handle,
+            name: self.lib.name(),
+            readings: ExolegReadings { size: std::mem::size_of::<ExolegReadings>() as u32, ..Default::default() },
+            command: ExolegCommand::default(),
+            reset: false,
+            warnings: 0,
+            last_warning: None,
+        })
+    }
+}
+
+/// One plugin instance: a [`DiscreteController`].
+pub struct PluginController {
+    setup: Arc<PluginSetup>,
+    handle: *mut c_void,
+    name: String,
+    readings: ExolegReadings,
+    command: ExolegCommand,
+    reset: bool,
+    warnings: usize,
+    last_warning: Option<String>,
+}
+
+// SAFETY: the ABI requires instances without global state, used by one thread at a time;
+// the controller is owned by one run, which moves between threads only between calls.
+unsafe impl Send for PluginController {}
+
+impl PluginController {
+    fn message(&self) -> String {
+        let mut m = self.command.message;
+        m[MESSAGE_LEN - 1] = 0;
+        // SAFETY: NUL-terminated within the buffer (forced above).
+        let text = unsafe { CStr::from_ptr(m.as_ptr()) }.to_string_lossy().trim().to_string();
+        if text.is_empty() {
+            "(no message)".into()
+        } else {
+            text
+        }
+    }
+
+    fn fill(&mut self, s: &SampleInput) {
+        let (y, r) = (&s.y, &self.readings);
+        let mut valid = 0u32;
+        let mut counts = [0i64; 5];
+        for (i, c) in s.counts.0.iter().enumerate() {
+            if let Some(n) = c {
+                valid |= 1 << i;
+                counts[i] = *n;
+            }
+        }
+        self.readings = ExolegReadings {
+            size: r.size,
+            counts_valid: valid,
+            t_s: s.t_s,
+            period_s: s.period_s,
+            force_n: y.force_n,
+            force_rate_n_per_s: y.force_rate_n_per_s,
+            spool_m: y.spool_m,
+            piston_m: y.piston_m,
+            piston_velocity_m_s: y.piston_velocity_m_s,
+            piston_accel_m_s2: y.piston_accel_m_s2,
+            knee_rad: y.knee_rad,
+            knee_rate_rad_s: y.knee_rate_rad_s,
+            ref_force_n: s.r.value,
+            ref_force_rate_n_per_s: s.r.rate,
+            ref_force_accel_n_per_s2: s.r.accel,
+            next_ref_force_n: s.r_next.value,
+            next_ref_force_rate_n_per_s: s.r_next.rate,
+            next_ref_force_accel_n_per_s2: s.r_next.accel,
+            valve_command_limit: s.valve_limit.0,
+            counts,
+        };
+    }
+
+    fn status(&mut self, call: &str, status: i32) -> Result<(), ControlStop> {
+        match status {
+            STATUS_OK => Ok(()),
+            STATUS_WARNING => {
+                self.warnings += 1;
+                self.last_warning = Some(self.message());
+                Ok(())
+            }
+            STATUS_STOP => Err(ControlStop {
+                message: format!("plugin {} stopped the run in {call} (status 2): {}", self.name, self.message()),
+            }),
+            other => Err(ControlStop {
+                message: format!("plugin {} returned the unknown status {other} from {call}", self.name),
+            }),
+        }
+    }
+}
+
+impl DiscreteController for PluginController {
+    fn kind(&self) -> &str {
+        "plugin"
+    }
+
+    fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
+        self.command = ExolegCommand::default();
+        if !self.reset {
+            self.reset = true;
+            // SAFETY: a live instance of this library.
+            let st = unsafe { (self.setup.lib.reset)(self.handle) };
+            self.status("exoleg_reset", st)?;
+        }
+        self.fill(s);
+        // SAFETY: a live instance; both structs are ours, sized and valid through the call.
+        let st = unsafe { (self.setup.lib.step)(self.handle, &self.readings, &mut self.command) };
+        self.status("exoleg_step", st)?;
+        let u = self.command.valve_command;
+        if !u.is_finite() {
+            return Err(ControlStop {
+                message: format!("plugin {} returned the valve command {u} (status {st})", self.name),
+            });
+        }
+        Ok(ControlOutput {
+            valve_command: u,
+            disturbance_estimate_n_per_s2: self.command.disturbance_estimate_n_per_s2,
+            ..Default::default()
+        })
+    }
+
+    fn log_names(&self) -> Vec<String> {
+        self.setup.log.clone()
+    }
+
+    fn log_values(&self, out: &mut [f64]) {
+        for (o, v) in out.iter_mut().zip(self.command.log) {
+            *o = v;
+        }
+    }
+
+    fn warnings(&self) -> (usize, Option<String>) {
+        (self.warnings, self.last_warning.clone())
+    }
+}
+
+impl Drop for PluginController {
+    fn drop(&mut self) {
+        // SAFETY: the instance was created by this library and is destroyed once.
+        unsafe { (self.setup.lib.destroy)(self.handle) }
+    }
+}

@@ -1,0 +1,163 @@
+//! A run with its figures: a [`Simulation`] whose rows feed the online metrics and the
+//! caller's sink as it goes. Drive it with [`Session::step`] (the run's own controller) or,
+//! when the caller owns the loop, [`Session::sample`] / [`Session::hold`] /
+//! [`Session::advance`]; [`Session::finish`] records the final state and returns the summary.
+
+use crate::control::{ControlOutput, SampleInput};
+use crate::error::Result;
+use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics};
+use crate::record::{Layout, MemoryRecord, RecordSink, Row};
+use crate::sim::{Model, Simulation};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// The sinks of a session, fed in order without allocating per row.
+struct Fan<'a, S: RecordSink + ?Sized> {
+    metrics: &'a mut SummaryBuilder,
+    sink: &'a mut S,
+    walking: Option<&'a mut WalkingMetrics>,
+}
+
+impl<S: RecordSink + ?Sized> RecordSink for Fan<'_, S> {
+    fn start(&mut self, layout: &Layout) -> Result<()> {
+        self.metrics.start(layout)?;
+        self.sink.start(layout)?;
+        self.walking.as_mut().map_or(Ok(()), |w| w.start(layout))
+    }
+    fn row(&mut self, row: &Row) -> Result<()> {
+        self.metrics.row(row)?;
+        self.sink.row(row)?;
+        self.walking.as_mut().map_or(Ok(()), |w| w.row(row))
+    }
+}
+
+/// What a finished session gives back.
+pub struct Finished<S> {
+    /// The figures.
+    pub summary: Summary,
+    /// Design figures of the controller (gains computed at start), if it has any.
+    pub design: Option<serde_json::Value>,
+    /// The caller's sink.
+    pub sink: S,
+}
+
+/// A simulation with its online metrics and the caller's sink.
+pub struct Session<S: RecordSink> {
+    sim: Simulation,
+    metrics: SummaryBuilder,
+    walking: Option<WalkingMetrics>,
+    sink: S,
+    /// Time spent simulating (s), for `steps_per_second`.
+    wall: Duration,
+}
+
+impl<S: RecordSink> Session<S> {
+    /// Start a session: the sinks get the run's column layout.
+    pub fn new(sim: Simulation, mut sink: S) -> Result<Self> {
+        let sc = sim.model().clone();
+        let layout = sim.layout();
+        let mut metrics = SummaryBuilder::new(sc.metrics);
+        let mut walking = layout.contact.then(|| {
+            let data = sc.leg().and_then(|l| l.body.as_ref()).and_then(|b| match &b.targets {
+                crate::plant::BodyTargets::Walking(w) => Some(w.clone()),
+                crate::plant::BodyTargets::Pose(_) => None,
+            });
+            WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data)
+        });
+        Fan { metrics: &mut metrics, sink: &mut sink, walking: walking.as_mut() }.start(&layout)?;
+        Ok(Self { sim, metrics, walking, sink, wall: Duration::ZERO })
+    }
+
+    /// The simulation.
+    pub fn sim(&self) -> &Simulation {
+        &self.sim
+    }
+
+    /// The simulation, to change what it allows between steps (e.g. logged channels).
+    pub fn sim_mut(&mut self) -> &mut Simulation {
+        &mut self.sim
+    }
+
+    fn timed<T>(&mut self, f: impl FnOnce(&mut Simulation, &mut Fan<'_, S>) -> Result<T>) -> Result<T> {
+        let t0 = Instant::now();
+        let mut fan = Fan { metrics: &mut self.metrics, sink: &mut self.sink, walking: self.walking.as_mut() };
+        let r = f(&mut self.sim, &mut fan);
+        self.wall += t0.elapsed();
+        r
+    }
+
+    /// One step with the run's own controller.
+    pub fn step(&mut self) -> Result<()> {
+        self.timed(|sim, fan| sim.step(fan))
+    }
+
+    /// Every remaining step with the run's own controller.
+    pub fn run_to_end(&mut self) -> Result<()> {
+        self.timed(|sim, fan| {
+            while !sim.done() {
+                sim.step(fan)?;
+            }
+            Ok(())
+        })
+    }
+
+    /// Read the sensors at a sample instant (see [`Simulation::sample`]).
+    pub fn sample(&mut self) -> Result<SampleInput> {
+        self.timed(|sim, _| sim.sample())
+    }
+
+    /// Hold a command (see [`Simulation::hold`]).
+    pub fn hold(&mut self, out: ControlOutput) -> Result<()> {
+        self.sim.hold(out)
+    }
+
+    /// One fixed step (see [`Simulation::advance`]).
+    pub fn advance(&mut self) -> Result<()> {
+        self.timed(|sim, fan| sim.advance(fan))
+    }
+
+    /// Record the final state and gather the figures.
+    pub fn finish(mut self) -> Result<Finished<S>> {
+        self.timed(|sim, fan| sim.finish(fan))?;
+        let sim = &self.sim;
+        let sc = sim.model();
+        let mut summary = self.metrics.finish(self.wall.as_secs_f64());
+        summary.contact = self.walking.map(|w| w.finish());
+        summary.engine = sc.leg().map(|l| if l.reduced.is_some() { "reduced" } else { "rapier" }.to_string());
+        (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
+        summary.sensor_clipped_readings = sim.sensor_clips().into_iter().map(|(k, n)| (k.to_string(), n)).collect();
+        let (n, last) = sim.controller_warnings();
+        if n > 0 {
+            summary.controller_warnings =
+                Some(crate::metrics::ControllerWarnings { samples: n, last: last.unwrap_or_default() });
+        }
+        Ok(Finished { summary, design: sim.controller_design(), sink: self.sink })
+    }
+}
+
+/// Run a resolved model to the end with its own controller, streaming rows to `sink`; returns
+/// the summary.
+pub fn run(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<Summary> {
+    run_with_design(sc, sink).map(|(s, _)| s)
+}
+
+/// Like [`run`], also returning the controller's design figures (sampled controllers that
+/// compute gains at start), for `summary.json`.
+pub fn run_with_design(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<(Summary, Option<serde_json::Value>)> {
+    run_simulation(Simulation::new(sc.clone())?, sink)
+}
+
+/// Run a built simulation (any controller) to the end, streaming rows to `sink`.
+pub fn run_simulation(sim: Simulation, sink: &mut dyn RecordSink) -> Result<(Summary, Option<serde_json::Value>)> {
+    let mut s = Session::new(sim, sink)?;
+    s.run_to_end()?;
+    let f = s.finish()?;
+    Ok((f.summary, f.design))
+}
+
+/// Run and keep the whole record in memory (tests, the library API).
+pub fn run_in_memory(sc: &Arc<Model>) -> Result<(Summary, MemoryRecord)> {
+    let mut rec = MemoryRecord::default();
+    let summary = run(sc, &mut rec)?;
+    Ok((summary, rec))
+}
