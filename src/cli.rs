@@ -2,7 +2,7 @@
 
 use crate::error::{Error, Result, EXIT_OK};
 use crate::metrics::Summary;
-use crate::output::{self, OutputDir};
+use crate::output;
 use crate::scenario::{ResolvedScenario, Resources, Scenario};
 use crate::study::{self, compare, robustness, shard, sweep};
 use clap::{Parser, Subcommand};
@@ -187,16 +187,7 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bo
     if animate && sc.model.leg().is_none() {
         return Err(Error::input(&sc.source_name, "--animate", "the animation draws the leg: plant.kind = \"leg\""));
     }
-    let dir = OutputDir::prepare(&out, "--out")?;
-    let report = if animate {
-        let mut anim = output::animate::Animation::new(sc.model.steps as f64 * sc.model.dt_s);
-        let report = study::run_into(&sc, dir.path(), &study::run_title(&sc), Some(&mut anim))?;
-        study::write_animation(&sc, &anim, &dir.path().join("leg_motion.gif"))?;
-        report
-    } else {
-        study::run_into(&sc, dir.path(), &study::run_title(&sc), None)?
-    };
-    dir.commit()?;
+    let report = study::RunBuilder::new(&sc).animate(animate).write_to(&out)?;
     if !quiet {
         print_summary(&sc, &report.summary, &out);
     }
@@ -246,7 +237,7 @@ fn run_study(
         return Ok(EXIT_OK);
     }
     let sh = common.shard.as_deref().map(shard::parse_shard).transpose()?;
-    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: sh.unwrap_or((0, 1)) };
+    let opts = sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: sh.unwrap_or((0, 1)), controller: None };
     let start = std::time::Instant::now();
     let done = shard::run_study_into(base, source_name, plan, &study, &opts, sh.is_some(), run_outputs, &out)?;
     let (title, agg) = (done.title, done.aggregate);
@@ -266,7 +257,7 @@ fn robustness_verdict(base: &crate::scenario::ScenarioFile, agg: &sweep::Aggrega
     } else {
         " (the scenario sets no [criteria]: only divergence fails)"
     };
-    println!("{}/{} runs pass{verdict} ({} diverged); report in {}", agg.passed, agg.runs, agg.failed, out.display());
+    println!("{}/{} runs pass{verdict} ({} failed); report in {}", agg.passed, agg.runs, agg.failed, out.display());
     if agg.passed == agg.runs {
         Ok(EXIT_OK)
     } else {

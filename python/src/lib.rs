@@ -110,7 +110,7 @@ fn study(
         if let Some((k, n)) = shard_k_n {
             shard::parse_shard(&format!("{k}/{n}"))?;
         }
-        let opts = sweep::RunOptions { jobs, progress: false, shard: shard_k_n.unwrap_or((0, 1)) };
+        let opts = sweep::RunOptions { jobs, progress: false, shard: shard_k_n.unwrap_or((0, 1)), controller: None };
         let done = shard::run_study_into(
             &base_run,
             &base.source_name,

@@ -101,7 +101,7 @@ pub fn write_study_outputs(
 ) -> Result<String> {
     output::write_atomic(&dir.join("aggregate.csv"), agg.csv().as_bytes())?;
     match study {
-        StudyKind::Sweep => Ok(format!("{} runs ({} diverged)", agg.runs, agg.failed)),
+        StudyKind::Sweep => Ok(format!("{} runs ({} failed)", agg.runs, agg.failed)),
         StudyKind::Robustness { percent } => robustness::write_report_png(dir, base, source, *percent, agg),
     }
 }
@@ -297,7 +297,7 @@ pub fn run_study_into(
             scenario: base.file.clone(),
         };
         write_shard_meta(dir.path(), &meta)?;
-        format!("shard {k}/{n}: {} runs ({} diverged)", agg.runs, agg.failed)
+        format!("shard {k}/{n}: {} runs ({} failed)", agg.runs, agg.failed)
     } else {
         write_study_outputs(dir.path(), study, &base.file, source_name, &agg)?
     };

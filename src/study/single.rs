@@ -4,7 +4,9 @@ use crate::error::{Error, Result};
 use crate::metrics::{check_criteria, CriterionResult, Summary};
 use crate::output::{force_tracking_png, knee_tracking_png, write_json, CsvSink, PlotBuffer};
 use crate::record::{RecordSink, Tee};
+use crate::control::DiscreteController;
 use crate::scenario::{InputRecord, ResolvedScenario, ScenarioFile};
+use crate::sim::{ControllerSource, Simulation};
 use serde::Serialize;
 use std::path::Path;
 
@@ -87,8 +89,14 @@ pub struct MemoryRun {
 
 /// Run `sc` in memory: the same figures and columns as [`run_into`] writes, no files.
 pub fn run_to_memory(sc: &ResolvedScenario) -> Result<MemoryRun> {
+    run_to_memory_with(sc, ControllerSource::Model)
+}
+
+/// [`run_to_memory`] with the controller from `source`.
+pub fn run_to_memory_with(sc: &ResolvedScenario, source: ControllerSource) -> Result<MemoryRun> {
     let mut rec = crate::record::MemoryRecord::default();
-    let (summary, design) = crate::session::run_with_design(&sc.model, &mut rec)?;
+    let sim = Simulation::build(sc.model.clone(), source)?;
+    let (summary, design) = crate::session::run_simulation(sim, &mut rec)?;
     let criteria = check_criteria(&sc.file.criteria, &summary);
     let file = SummaryFile::new(sc, &summary, &criteria, design);
     let summary_json =
@@ -109,13 +117,25 @@ pub fn run_into(
     title: &str,
     extra: Option<&mut dyn RecordSink>,
 ) -> Result<RunReport> {
+    run_into_with(sc, ControllerSource::Model, dir, title, extra)
+}
+
+/// [`run_into`] with the controller from `source` (the caller's [`DiscreteController`]).
+pub fn run_into_with(
+    sc: &ResolvedScenario,
+    source: ControllerSource,
+    dir: &Path,
+    title: &str,
+    extra: Option<&mut dyn RecordSink>,
+) -> Result<RunReport> {
+    let sim = Simulation::build(sc.model.clone(), source)?;
     let mut csv = CsvSink::create(&dir.join("timeseries.csv"))?;
     let mut plots = PlotBuffer::new();
     let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut csv, &mut plots];
     if let Some(e) = extra {
         sinks.push(e);
     }
-    let (summary, design) = crate::session::run_with_design(&sc.model, &mut Tee(sinks))?;
+    let (summary, design) = crate::session::run_simulation(sim, &mut Tee(sinks))?;
     csv.finish()?;
     let criteria = check_criteria(&sc.file.criteria, &summary);
     let file = SummaryFile::new(sc, &summary, &criteria, design);
@@ -140,4 +160,72 @@ pub fn write_animation(sc: &ResolvedScenario, anim: &crate::output::animate::Ani
     };
     let scene = crate::output::animate::Scene { model: &leg.model, cuff_m: cuff, ground_z_m };
     crate::output::animate::write_gif(path, anim, &scene)
+}
+
+/// A run of a resolved scenario with the caller's controller (or the scenario's own): the same
+/// outputs, summary, criteria and plots as `exoleg run`.
+///
+/// ```no_run
+/// # use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput};
+/// struct Pi { ki: f64, integral: f64 }
+/// impl DiscreteController for Pi {
+///     fn kind(&self) -> &str { "pi" }
+///     fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
+///         let e = s.r.value - s.y.force_n;
+///         self.integral += e * s.period_s;
+///         Ok(ControlOutput::command(1e-4 * e + self.ki * self.integral))
+///     }
+/// }
+/// let sc = exoleg::load(None, &["controller.sample_period_s=0.001"]).unwrap();
+/// let report = exoleg::study::RunBuilder::new(&sc)
+///     .controller(Box::new(Pi { ki: 1e-3, integral: 0.0 }))
+///     .write_to(std::path::Path::new("out/pi"))
+///     .unwrap();
+/// println!("{}", report.summary.max_abs_force_error_n);
+/// ```
+pub struct RunBuilder<'a> {
+    sc: &'a ResolvedScenario,
+    source: ControllerSource,
+    animate: bool,
+}
+
+impl<'a> RunBuilder<'a> {
+    /// A run of `sc` with its own controller until [`Self::controller`] says otherwise.
+    pub fn new(sc: &'a ResolvedScenario) -> Self {
+        Self { sc, source: ControllerSource::Model, animate: false }
+    }
+
+    /// Put the caller's sampled controller in the loop (`controller.sample_period_s` > 0).
+    pub fn controller(mut self, ctrl: Box<dyn DiscreteController>) -> Self {
+        self.source = ControllerSource::Discrete(ctrl);
+        self
+    }
+
+    /// Also write `leg_motion.gif` (leg runs).
+    pub fn animate(mut self, on: bool) -> Self {
+        self.animate = on;
+        self
+    }
+
+    /// Run and write the outputs into `out` as `exoleg run --out` does: into a temporary
+    /// folder, renamed into place only when the run completed (nothing is half-written).
+    pub fn write_to(self, out: &Path) -> Result<RunReport> {
+        let dir = crate::output::OutputDir::prepare(out, "--out")?;
+        let title = run_title(self.sc);
+        let report = if self.animate && self.sc.model.leg().is_some() {
+            let mut anim = crate::output::animate::Animation::new(self.sc.model.steps as f64 * self.sc.model.dt_s);
+            let r = run_into_with(self.sc, self.source, dir.path(), &title, Some(&mut anim))?;
+            write_animation(self.sc, &anim, &dir.path().join("leg_motion.gif"))?;
+            r
+        } else {
+            run_into_with(self.sc, self.source, dir.path(), &title, None)?
+        };
+        dir.commit()?;
+        Ok(report)
+    }
+
+    /// Run in memory: `summary.json`'s content and the columns of `timeseries.csv`.
+    pub fn in_memory(self) -> Result<MemoryRun> {
+        run_to_memory_with(self.sc, self.source)
+    }
 }

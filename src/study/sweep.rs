@@ -246,8 +246,13 @@ fn summary_without_timing<S: serde::Serializer>(s: &Option<Summary>, ser: S) -> 
     v.serialize(ser)
 }
 
+/// Makes the controller of each run of a study from the run's resolved scenario (the caller's
+/// controller in a sweep: one instance per run).
+pub type ControllerFactory =
+    dyn Fn(&crate::scenario::ResolvedScenario) -> Result<Box<dyn crate::control::DiscreteController>> + Send + Sync;
+
 /// How to run a plan.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Clone, Default)]
 pub struct RunOptions {
     /// Worker threads (0 = all cores); clamped to [`MAX_JOBS`] and the number of runs.
     pub jobs: usize,
@@ -255,6 +260,8 @@ pub struct RunOptions {
     pub progress: bool,
     /// Only the runs with index % of.1 == of.0 (a shard); (0, 1) = all.
     pub shard: (usize, usize),
+    /// The caller's controller for every run (None: each run's `controller.kind`).
+    pub controller: Option<std::sync::Arc<ControllerFactory>>,
 }
 
 /// The number of worker threads for `runs` runs.
@@ -293,18 +300,38 @@ fn pool(jobs: usize, runs: usize) -> Result<rayon::ThreadPool> {
         .map_err(|e| Error::input("--jobs", n.to_string(), e.to_string()))
 }
 
-/// Run one planned run; a divergence is a failed line, any other error stops the sweep.
-fn run_one(base: &Scenario, plan: &Plan, i: usize, res: &Resources, run_dir: Option<&Path>) -> Result<RunLine> {
-    let sets = plan.sets(i);
-    let sc = base.with_sets(&sets)?.resolve(res)?;
-    let result = match run_dir {
+/// Run one resolved run (its outputs into `run_dir/run_NNNN` when asked).
+fn simulate(
+    sc: &crate::scenario::ResolvedScenario,
+    i: usize,
+    opts: &RunOptions,
+    run_dir: Option<&Path>,
+) -> Result<Summary> {
+    let source = match &opts.controller {
+        Some(f) => crate::sim::ControllerSource::Discrete(f(sc)?),
+        None => crate::sim::ControllerSource::Model,
+    };
+    match run_dir {
         Some(dir) => {
             let d = dir.join(format!("run_{i:04}"));
             std::fs::create_dir_all(&d).map_err(|e| Error::Write { path: d.clone(), message: e.to_string() })?;
-            super::run_into(&sc, &d, &sc.source_name, None).map(|r| r.summary)
+            super::run_into_with(sc, source, &d, &sc.source_name, None).map(|r| r.summary)
         }
-        None => crate::session::run(&sc.model, &mut crate::record::NullSink),
-    };
+        None => {
+            let sim = crate::sim::Simulation::build(sc.model.clone(), source)?;
+            crate::session::run_simulation(sim, &mut crate::record::NullSink).map(|r| r.0)
+        }
+    }
+}
+
+/// Run one planned run. A run that fails for any reason (divergence, a controller that stops
+/// it, an error writing its own outputs, even a panic) is a failed line with its message; the
+/// others go on. Only bad input (caught before anything runs) stops a sweep.
+fn run_one(base: &Scenario, plan: &Plan, i: usize, res: &Resources, opts: &RunOptions, run_dir: Option<&Path>) -> Result<RunLine> {
+    let sets = plan.sets(i);
+    let sc = base.with_sets(&sets)?.resolve(res)?;
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate(&sc, i, opts, run_dir)))
+        .unwrap_or_else(|p| Err(Error::Usage(format!("internal error (a panic): {}", panic_message(&p)))));
     Ok(match result {
         Ok(summary) => {
             let criteria = check_criteria(&sc.file.criteria, &summary);
@@ -317,18 +344,22 @@ fn run_one(base: &Scenario, plan: &Plan, i: usize, res: &Resources, run_dir: Opt
                 error: None,
             }
         }
-        Err(e @ Error::Diverged { .. }) => {
+        Err(e) => {
             RunLine { index: i, sets, summary: None, criteria: Vec::new(), passed: false, error: Some(e.to_string()) }
         }
-        Err(e) => return Err(e),
     })
+}
+
+/// The text of a caught panic.
+pub fn panic_message(p: &Box<dyn std::any::Any + Send>) -> String {
+    p.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| p.downcast_ref::<String>().cloned()).unwrap_or_else(|| "(no message)".into())
 }
 
 /// Aggregated figures of a sweep, gathered line by line.
 #[derive(Debug, Clone, Default)]
 pub struct Aggregate {
     values: Vec<Vec<f64>>,
-    /// Runs that diverged.
+    /// Runs that failed (diverged, stopped by their controller, or any other run error).
     pub failed: usize,
     /// Runs that passed their criteria.
     pub passed: usize,
@@ -371,7 +402,7 @@ impl Aggregate {
             let med = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
             s.push_str(&format!("{},{n},{},{med},{}\n", m.name(), v[0], v[n - 1]));
         }
-        s.push_str(&format!("diverged_runs,{},,,\n", self.failed));
+        s.push_str(&format!("failed_runs,{},,,\n", self.failed));
         s
     }
 }
@@ -396,7 +427,7 @@ pub fn run_plan(
             chunk
                 .par_iter()
                 .map(|&i| {
-                    let l = run_one(base, plan, i, res, run_dir);
+                    let l = run_one(base, plan, i, res, opts, run_dir);
                     bar.inc(1);
                     l
                 })
