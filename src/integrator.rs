@@ -86,19 +86,20 @@ impl Integrator {
     ) {
         let n = x.len();
         let h = dt_s;
+        let k1 = &k1[..n];
         let (k2, rest) = work.split_at_mut(n);
         let (k3, rest) = rest.split_at_mut(n);
         let (k4, rest) = rest.split_at_mut(n);
         let stage = &mut rest[..n];
         let axpy = |out: &mut [f64], x: &[f64], a: f64, k: &[f64]| {
-            for i in 0..out.len() {
-                out[i] = x[i] + a * k[i];
+            for ((o, x), k) in out.iter_mut().zip(x).zip(k) {
+                *o = x + a * k;
             }
         };
         match self {
             Integrator::Euler => {
-                for i in 0..n {
-                    x[i] += h * k1[i];
+                for (x, k1) in x.iter_mut().zip(k1) {
+                    *x += h * k1;
                 }
             }
             Integrator::Ode3 => {
@@ -107,8 +108,8 @@ impl Integrator {
                 f(t_s + 0.5 * h, stage, k2);
                 axpy(stage, x, 0.75 * h, k2);
                 f(t_s + 0.75 * h, stage, k3);
-                for i in 0..n {
-                    x[i] += h * (2.0 / 9.0 * k1[i] + 1.0 / 3.0 * k2[i] + 4.0 / 9.0 * k3[i]);
+                for (((x, k1), k2), k3) in x.iter_mut().zip(k1).zip(&*k2).zip(&*k3) {
+                    *x += h * (2.0 / 9.0 * k1 + 1.0 / 3.0 * k2 + 4.0 / 9.0 * k3);
                 }
             }
             Integrator::Rk4 => {
@@ -118,8 +119,8 @@ impl Integrator {
                 f(t_s + 0.5 * h, stage, k3);
                 axpy(stage, x, h, k3);
                 f(t_s + h, stage, k4);
-                for i in 0..n {
-                    x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+                for ((((x, k1), k2), k3), k4) in x.iter_mut().zip(k1).zip(&*k2).zip(&*k3).zip(&*k4) {
+                    *x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
                 }
             }
         }

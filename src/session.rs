@@ -6,7 +6,7 @@
 use crate::control::{ControlOutput, SampleInput};
 use crate::error::Result;
 use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics};
-use crate::record::{Layout, MemoryRecord, RecordSink, Row};
+use crate::record::{Layout, MemoryRecord, RecordSink, Row, MAX_LOGGED};
 use crate::sim::{Model, Simulation};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -49,23 +49,25 @@ pub struct Session<S: RecordSink> {
     sink: S,
     /// Time spent simulating (s), for `steps_per_second`.
     wall: Duration,
+    /// The sinks have their layout (at the first step, once the controller's logged channels
+    /// are known).
+    started: bool,
 }
 
 impl<S: RecordSink> Session<S> {
-    /// Start a session: the sinks get the run's column layout.
-    pub fn new(sim: Simulation, mut sink: S) -> Result<Self> {
+    /// A session over `sim`; the sinks get the run's column layout at the first step.
+    pub fn new(sim: Simulation, sink: S) -> Result<Self> {
         let sc = sim.model().clone();
         let layout = sim.layout();
-        let mut metrics = SummaryBuilder::new(sc.metrics);
-        let mut walking = layout.contact.then(|| {
+        let metrics = SummaryBuilder::new(sc.metrics);
+        let walking = layout.contact.then(|| {
             let data = sc.leg().and_then(|l| l.body.as_ref()).and_then(|b| match &b.targets {
                 crate::plant::BodyTargets::Walking(w) => Some(w.clone()),
                 crate::plant::BodyTargets::Pose(_) => None,
             });
             WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data)
         });
-        Fan { metrics: &mut metrics, sink: &mut sink, walking: walking.as_mut() }.start(&layout)?;
-        Ok(Self { sim, metrics, walking, sink, wall: Duration::ZERO })
+        Ok(Self { sim, metrics, walking, sink, wall: Duration::ZERO, started: false })
     }
 
     /// The simulation.
@@ -78,24 +80,52 @@ impl<S: RecordSink> Session<S> {
         &mut self.sim
     }
 
-    fn timed<T>(&mut self, f: impl FnOnce(&mut Simulation, &mut Fan<'_, S>) -> Result<T>) -> Result<T> {
-        let t0 = Instant::now();
+    /// Give the sinks the run's layout, once (at the first step, when an outside controller's
+    /// logged channels are known).
+    fn ensure_started(&mut self) -> Result<()> {
+        if self.started {
+            return Ok(());
+        }
+        let layout = self.sim.layout();
+        if layout.log.len() > MAX_LOGGED {
+            return Err(crate::error::Error::Usage(format!(
+                "the controller logs {} channels, at most {MAX_LOGGED}",
+                layout.log.len()
+            )));
+        }
+        Fan { metrics: &mut self.metrics, sink: &mut self.sink, walking: self.walking.as_mut() }.start(&layout)?;
+        self.started = true;
+        Ok(())
+    }
+
+    /// One fixed step into the sinks (untimed).
+    fn advance_inner(&mut self) -> Result<()> {
+        self.ensure_started()?;
         let mut fan = Fan { metrics: &mut self.metrics, sink: &mut self.sink, walking: self.walking.as_mut() };
-        let r = f(&mut self.sim, &mut fan);
+        self.sim.advance(&mut fan)
+    }
+
+    fn timed<T>(&mut self, f: impl FnOnce(&mut Self) -> Result<T>) -> Result<T> {
+        let t0 = Instant::now();
+        let r = f(self);
         self.wall += t0.elapsed();
         r
     }
 
     /// One step with the run's own controller.
     pub fn step(&mut self) -> Result<()> {
-        self.timed(|sim, fan| sim.step(fan))
+        self.timed(|s| {
+            s.sim.control_step()?;
+            s.advance_inner()
+        })
     }
 
     /// Every remaining step with the run's own controller.
     pub fn run_to_end(&mut self) -> Result<()> {
-        self.timed(|sim, fan| {
-            while !sim.done() {
-                sim.step(fan)?;
+        self.timed(|s| {
+            while !s.sim.done() {
+                s.sim.control_step()?;
+                s.advance_inner()?;
             }
             Ok(())
         })
@@ -103,7 +133,7 @@ impl<S: RecordSink> Session<S> {
 
     /// Read the sensors at a sample instant (see [`Simulation::sample`]).
     pub fn sample(&mut self) -> Result<SampleInput> {
-        self.timed(|sim, _| sim.sample())
+        self.sim.sample()
     }
 
     /// Hold a command (see [`Simulation::hold`]).
@@ -113,12 +143,16 @@ impl<S: RecordSink> Session<S> {
 
     /// One fixed step (see [`Simulation::advance`]).
     pub fn advance(&mut self) -> Result<()> {
-        self.timed(|sim, fan| sim.advance(fan))
+        self.timed(|s| s.advance_inner())
     }
 
     /// Record the final state and gather the figures.
     pub fn finish(mut self) -> Result<Finished<S>> {
-        self.timed(|sim, fan| sim.finish(fan))?;
+        self.timed(|s| {
+            s.ensure_started()?;
+            let mut fan = Fan { metrics: &mut s.metrics, sink: &mut s.sink, walking: s.walking.as_mut() };
+            s.sim.finish(&mut fan)
+        })?;
         let sim = &self.sim;
         let sc = sim.model();
         let mut summary = self.metrics.finish(self.wall.as_secs_f64());

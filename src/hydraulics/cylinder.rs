@@ -119,6 +119,7 @@ impl Cylinder {
     /// the load cell and the controller see. `inp` carries the piston velocity and the
     /// disturbances; its `valve_command` is not used. Then [`Self::derivatives`] with the
     /// command.
+    #[inline]
     pub fn rates(&self, h: &HydraulicState, piston: &PistonKinematics, inp: &ForceChannelInput) -> ForceRates {
         let (raw, mean) = self.force_rate(h, piston, inp);
         ForceRates { raw_n_per_s: raw, load_cell_n_per_s: self.rate_at_bound(h, raw), mean_pressure_pa_s: mean }

@@ -191,7 +191,7 @@ impl Simulation {
                     ControllerSource::Discrete(c) => Some(c),
                     ControllerSource::External => None,
                 };
-                ControlBlock::Sampled(Box::new(SampledLoop::new(&sc, every, ctrl)?))
+                ControlBlock::Sampled(Box::new(SampledLoop::new(&sc, every, ctrl)))
             }
         };
         let controller_names = match &control {
@@ -228,10 +228,19 @@ impl Simulation {
             knee_reference: self.sc.reference.knee_at(0.0).is_some(),
             leg: self.plant.leg_row().is_some(),
             contact: self.plant.contact_row().is_some(),
-            log: match &self.control {
-                ControlBlock::Sampled(l) => l.log_names.clone(),
-                ControlBlock::Continuous(_) => Vec::new(),
+            log: self.log_names(),
+        }
+    }
+
+    /// The names of the channels the controller logs: what an outside controller says now
+    /// (asked when the record starts), or what the caller set with [`Self::set_log_names`].
+    pub fn log_names(&self) -> Vec<String> {
+        match &self.control {
+            ControlBlock::Sampled(l) => match &l.ctrl {
+                Some(c) => c.log_names(),
+                None => l.log_names.clone(),
             },
+            ControlBlock::Continuous(_) => Vec::new(),
         }
     }
 
@@ -373,12 +382,13 @@ impl Simulation {
         }
         let out = self.sc.valve_limit.apply(out);
         let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
-        if l.awaiting.take() != Some(self.k) {
+        if l.awaiting != Some(self.k) {
             return Err(Error::Usage(format!("hold() at step {} without sample() first", self.k)));
         }
+        l.awaiting = None;
         l.hold.set(out);
         if let Some(c) = &l.ctrl {
-            c.log_values(&mut l.log[..l.log_names.len()]);
+            c.log_values(&mut l.log);
         }
         self.held.output = Some(out);
         Ok(())
@@ -388,7 +398,7 @@ impl Simulation {
     /// the names given when it was built with them.
     pub fn set_log(&mut self, values: &[f64]) {
         if let ControlBlock::Sampled(l) = &mut self.control {
-            let n = l.log_names.len().min(values.len());
+            let n = MAX_LOGGED.min(values.len());
             l.log[..n].copy_from_slice(&values[..n]);
         }
     }
@@ -397,7 +407,10 @@ impl Simulation {
     /// at most [`MAX_LOGGED`]).
     pub fn set_log_names(&mut self, names: Vec<String>) -> Result<()> {
         if names.len() > MAX_LOGGED || self.k > 0 {
-            return Err(Error::Usage(format!("at most {MAX_LOGGED} logged channels, named before the first step")));
+            return Err(Error::Usage(format!(
+                "at most {MAX_LOGGED} logged channels, named before the first step (got {})",
+                names.len()
+            )));
         }
         if let ControlBlock::Sampled(l) = &mut self.control {
             l.log_names = names;
@@ -405,8 +418,12 @@ impl Simulation {
         Ok(())
     }
 
-    /// The run's own sampled controller at a sample instant: sample, update, hold.
-    fn control_sampled(&mut self) -> Result<()> {
+    /// The run's own controller at this step if it is a sample instant: sample, update, hold
+    /// (nothing otherwise). [`Self::step`] is this and [`Self::advance`].
+    pub fn control_step(&mut self) -> Result<()> {
+        if !self.is_sample_step() {
+            return Ok(());
+        }
         let input = self.sample()?;
         let t = input.t_s;
         let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
@@ -457,9 +474,7 @@ impl Simulation {
     /// Advance one step with the run's own controller; the row of the step's start goes to
     /// `sink`.
     pub fn step(&mut self, sink: &mut dyn RecordSink) -> Result<()> {
-        if self.is_sample_step() {
-            self.control_sampled()?;
-        }
+        self.control_step()?;
         self.advance(sink)
     }
 
@@ -668,23 +683,15 @@ impl Simulation {
 impl SampledLoop {
     /// The sensors and hold of a sampled run every `every` steps, with `ctrl` (None: the caller
     /// gives the commands).
-    fn new(sc: &Model, every: usize, ctrl: Option<Box<dyn DiscreteController>>) -> Result<Self> {
-        let log_names = ctrl.as_ref().map(|c| c.log_names()).unwrap_or_default();
-        if log_names.len() > MAX_LOGGED {
-            return Err(Error::input(
-                &sc.source_name,
-                "controller",
-                format!("the controller logs {} channels, at most {MAX_LOGGED}", log_names.len()),
-            ));
-        }
-        Ok(Self {
+    fn new(sc: &Model, every: usize, ctrl: Option<Box<dyn DiscreteController>>) -> Self {
+        Self {
             ctrl,
             sensors: SampledSensors::new(&sc.sensors, sc.sample_period_s, sc.seed),
             hold: ZeroOrderHold::new(every, ControlOutput::default()),
             awaiting: None,
             sampled: None,
-            log_names,
+            log_names: Vec::new(),
             log: [0.0; MAX_LOGGED],
-        })
+        }
     }
 }

@@ -61,8 +61,10 @@ const NAMES: [&str; PLANT_LEN] = [
 ];
 
 impl State {
-    /// Write the plant-side entries into the first [`PLANT_LEN`] of `x`.
+    /// Write the plant-side entries into the first [`PLANT_LEN`] of `x` (which has at least
+    /// as many).
     pub fn pack_into(&self, x: &mut [f64]) {
+        let Some(x) = x.first_chunk_mut::<PLANT_LEN>() else { return };
         x[FORCE] = self.hyd.force_n;
         x[SPOOL] = self.hyd.spool_m;
         x[ACCEL_DIST] = self.hyd.accel_dist_n_per_s;
@@ -73,8 +75,10 @@ impl State {
         x[KNEE_RATE] = self.knee.rate_rad_s;
     }
 
-    /// The plant-side state from the first [`PLANT_LEN`] entries of a packed vector.
+    /// The plant-side state from the first [`PLANT_LEN`] entries of a packed vector (which
+    /// has at least as many).
     pub fn unpack(x: &[f64]) -> Self {
+        let Some(x) = x.first_chunk::<PLANT_LEN>() else { return State::default() };
         State {
             hyd: HydraulicState {
                 force_n: x[FORCE],

@@ -1,10 +1,10 @@
 //! One run written to an output folder: streamed `timeseries.csv`, `summary.json` and plots.
 
+use crate::control::DiscreteController;
 use crate::error::{Error, Result};
 use crate::metrics::{check_criteria, CriterionResult, Summary};
 use crate::output::{force_tracking_png, knee_tracking_png, write_json, CsvSink, PlotBuffer};
 use crate::record::{RecordSink, Tee};
-use crate::control::DiscreteController;
 use crate::scenario::{InputRecord, ResolvedScenario, ScenarioFile};
 use crate::sim::{ControllerSource, Simulation};
 use serde::Serialize;

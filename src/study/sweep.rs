@@ -327,7 +327,14 @@ fn simulate(
 /// Run one planned run. A run that fails for any reason (divergence, a controller that stops
 /// it, an error writing its own outputs, even a panic) is a failed line with its message; the
 /// others go on. Only bad input (caught before anything runs) stops a sweep.
-fn run_one(base: &Scenario, plan: &Plan, i: usize, res: &Resources, opts: &RunOptions, run_dir: Option<&Path>) -> Result<RunLine> {
+fn run_one(
+    base: &Scenario,
+    plan: &Plan,
+    i: usize,
+    res: &Resources,
+    opts: &RunOptions,
+    run_dir: Option<&Path>,
+) -> Result<RunLine> {
     let sets = plan.sets(i);
     let sc = base.with_sets(&sets)?.resolve(res)?;
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate(&sc, i, opts, run_dir)))
@@ -352,7 +359,10 @@ fn run_one(base: &Scenario, plan: &Plan, i: usize, res: &Resources, opts: &RunOp
 
 /// The text of a caught panic.
 pub fn panic_message(p: &Box<dyn std::any::Any + Send>) -> String {
-    p.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| p.downcast_ref::<String>().cloned()).unwrap_or_else(|| "(no message)".into())
+    p.downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| p.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".into())
 }
 
 /// Aggregated figures of a sweep, gathered line by line.
