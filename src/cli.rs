@@ -237,8 +237,13 @@ fn run_study(
         return Ok(EXIT_OK);
     }
     let sh = common.shard.as_deref().map(shard::parse_shard).transpose()?;
-    let opts =
-        sweep::RunOptions { jobs: common.jobs, progress: !common.quiet, shard: sh.unwrap_or((0, 1)), controller: None };
+    let opts = sweep::RunOptions {
+        jobs: common.jobs,
+        progress: !common.quiet,
+        shard: sh.unwrap_or((0, 1)),
+        controller: None,
+        cancel: None,
+    };
     let start = std::time::Instant::now();
     let done = shard::run_study_into(base, source_name, plan, &study, &opts, sh.is_some(), run_outputs, &out)?;
     let (title, agg) = (done.title, done.aggregate);

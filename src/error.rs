@@ -74,6 +74,9 @@ pub enum Error {
         /// What happened.
         message: String,
     },
+    /// The caller asked the run to stop (Ctrl-C in the Python package).
+    #[error("interrupted")]
+    Interrupted,
     /// The library was used out of order (e.g. a step without the command for its sample).
     #[error("{0}")]
     Usage(String),
@@ -111,7 +114,7 @@ impl Error {
         match self {
             Error::Input { .. } | Error::Read { .. } => EXIT_BAD_INPUT,
             Error::Diverged { .. } | Error::Stiff { .. } | Error::ControllerStopped { .. } => EXIT_SIM_FAILED,
-            Error::Write { .. } | Error::Usage(_) => EXIT_FAILURE,
+            Error::Write { .. } | Error::Usage(_) | Error::Interrupted => EXIT_FAILURE,
             Error::Criteria(_) => EXIT_CRITERIA_FAILED,
         }
     }

@@ -8,6 +8,7 @@ use crate::error::Result;
 use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics};
 use crate::record::{Layout, MemoryRecord, RecordSink, Row, MAX_LOGGED};
 use crate::sim::{Model, Simulation};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -52,7 +53,12 @@ pub struct Session<S: RecordSink> {
     /// The sinks have their layout (at the first step, once the controller's logged channels
     /// are known).
     started: bool,
+    /// Set by the caller to stop [`Session::run_to_end`] (checked every [`CANCEL_CHECK_STEPS`]).
+    cancel: Option<Arc<AtomicBool>>,
 }
+
+/// Steps between two checks of a session's cancel flag.
+pub const CANCEL_CHECK_STEPS: usize = 256;
 
 impl<S: RecordSink> Session<S> {
     /// A session over `sim`; the sinks get the run's column layout at the first step.
@@ -67,7 +73,12 @@ impl<S: RecordSink> Session<S> {
             });
             WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data)
         });
-        Ok(Self { sim, metrics, walking, sink, wall: Duration::ZERO, started: false })
+        Ok(Self { sim, metrics, walking, sink, wall: Duration::ZERO, started: false, cancel: None })
+    }
+
+    /// Stop [`Self::run_to_end`] with [`crate::Error::Interrupted`] when `flag` is set.
+    pub fn set_cancel(&mut self, flag: Option<Arc<AtomicBool>>) {
+        self.cancel = flag;
     }
 
     /// The simulation.
@@ -126,6 +137,11 @@ impl<S: RecordSink> Session<S> {
             while !s.sim.done() {
                 s.sim.control_step()?;
                 s.advance_inner()?;
+                if s.sim.steps_taken() % CANCEL_CHECK_STEPS == 0
+                    && s.cancel.as_ref().is_some_and(|c| c.load(Ordering::Relaxed))
+                {
+                    return Err(crate::error::Error::Interrupted);
+                }
             }
             Ok(())
         })
@@ -183,7 +199,17 @@ pub fn run_with_design(sc: &Arc<Model>, sink: &mut dyn RecordSink) -> Result<(Su
 
 /// Run a built simulation (any controller) to the end, streaming rows to `sink`.
 pub fn run_simulation(sim: Simulation, sink: &mut dyn RecordSink) -> Result<(Summary, Option<serde_json::Value>)> {
+    run_cancellable(sim, sink, None)
+}
+
+/// [`run_simulation`], stopped with [`crate::Error::Interrupted`] when `cancel` is set.
+pub fn run_cancellable(
+    sim: Simulation,
+    sink: &mut dyn RecordSink,
+    cancel: Option<Arc<AtomicBool>>,
+) -> Result<(Summary, Option<serde_json::Value>)> {
     let mut s = Session::new(sim, sink)?;
+    s.set_cancel(cancel);
     s.run_to_end()?;
     let f = s.finish()?;
     Ok((f.summary, f.design))

@@ -1,17 +1,26 @@
 // PyO3 0.22's #[pyfunction] expansion trips clippy's useless_conversion on PyResult returns.
 #![allow(clippy::useless_conversion)]
 
-//! `exoleg._native`: the Rust side of the Python package. Every function releases the GIL
-//! while it simulates, so Python threads run in parallel. The Python layer
-//! (`pysrc/exoleg/__init__.py`) turns the results into dicts and numpy arrays.
+//! `exoleg._native`: the Rust side of the Python package. Scenarios and overrides come in as
+//! data (JSON text of Python dicts, or a path), never as guessed TOML. Runs without a Python
+//! controller release the GIL and run on a worker thread while the calling thread watches for
+//! Ctrl-C; a run with a Python controller holds the GIL and checks for signals as it goes.
+//! The Python layer (`pysrc/exoleg/__init__.py`) wraps the results.
 
+mod controller;
+mod stepwise;
+
+use exoleg::record::{Layout, RecordSink, Row};
 use exoleg::study::{compare, robustness, shard, sweep};
 use exoleg::{Error, Resources, Scenario};
+use numpy::PyArray1;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyBytes;
+use pyo3::types::PyDict;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 create_exception!(exoleg, ExoError, PyException, "Any exoleg failure (writing outputs, criteria).");
 create_exception!(
@@ -24,54 +33,189 @@ create_exception!(
     exoleg,
     DivergedError,
     PyRuntimeError,
-    "A run diverged or became too stiff; the message names the state and the time."
+    "A run diverged, became too stiff, or its controller stopped it; the message names the state or the controller and the time."
+);
+create_exception!(
+    exoleg,
+    ControllerError,
+    ExoError,
+    "The Python controller failed (raised, or returned something that is not a command); the message names the simulated time, and the original exception is the cause."
 );
 
-fn py_err(e: Error) -> PyErr {
+/// An exoleg error as the Python exception of its class.
+pub(crate) fn py_err(e: Error) -> PyErr {
     let msg = e.to_string();
     match e {
         Error::Input { .. } | Error::Read { .. } => ScenarioError::new_err(msg),
-        Error::Diverged { .. } | Error::Stiff { .. } => DivergedError::new_err(msg),
+        Error::Diverged { .. } | Error::Stiff { .. } | Error::ControllerStopped { .. } => DivergedError::new_err(msg),
+        Error::Interrupted => PyKeyboardInterrupt::new_err(msg),
         _ => ExoError::new_err(msg),
     }
 }
 
-/// The scenario: a file path, TOML text, or the embedded default, with overrides.
-fn load(path: Option<String>, toml_text: Option<String>, sets: &[String]) -> Result<Scenario, Error> {
-    match (path, toml_text) {
-        (Some(p), _) => Scenario::load(Some(Path::new(&p)), sets),
-        (None, Some(t)) => Scenario::from_toml_str("<python scenario>", &t, sets),
-        (None, None) => Scenario::load(None, sets),
+/// The scenario: a path, TOML text, a JSON object (a Python dict), or the embedded default,
+/// with overrides as a JSON array of `[key, value]` pairs.
+pub(crate) fn load(
+    path: Option<String>,
+    toml_text: Option<String>,
+    scenario_json: Option<String>,
+    overrides_json: Option<String>,
+) -> Result<Scenario, Error> {
+    let overrides: Vec<(String, serde_json::Value)> = match overrides_json {
+        None => Vec::new(),
+        Some(t) => serde_json::from_str(&t)
+            .map_err(|e| Error::input("overrides", "", format!("expected {{key: value}}: {e}")))?,
+    };
+    let base = match (path, toml_text, scenario_json) {
+        (Some(p), _, _) => Scenario::load(Some(Path::new(&p)), &[])?,
+        (None, Some(t), _) => Scenario::from_toml_str("<python scenario>", &t, &[])?,
+        (None, None, Some(j)) => {
+            let v: serde_json::Value = serde_json::from_str(&j)
+                .map_err(|e| Error::input("<python scenario>", "", format!("not a scenario: {e}")))?;
+            Scenario::from_json("<python scenario>", Some(v), Vec::new())?
+        }
+        (None, None, None) => Scenario::load(None, &[])?,
+    };
+    base.with_values(overrides)
+}
+
+/// The columns of a run, filled as it goes (one copy of the data, handed to numpy as is).
+#[derive(Default)]
+pub(crate) struct ColumnSink {
+    pub names: Vec<String>,
+    pub columns: Vec<Vec<f64>>,
+    layout: Layout,
+    buf: Vec<f64>,
+    capacity: usize,
+}
+
+impl ColumnSink {
+    /// Columns with room for `rows` rows each.
+    pub fn with_capacity(rows: usize) -> Self {
+        Self { capacity: rows, ..Default::default() }
+    }
+
+    /// The columns as numpy arrays, in a dict by name (no copy).
+    pub fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+        let d = PyDict::new_bound(py);
+        for (n, c) in self.names.into_iter().zip(self.columns) {
+            d.set_item(n, PyArray1::from_vec_bound(py, c))?;
+        }
+        Ok(d)
     }
 }
 
-/// Run one scenario in memory. Returns (summary JSON, column names, values as little-endian
-/// f64 bytes row after row, number of rows, the scenario as run in TOML).
+impl RecordSink for ColumnSink {
+    fn start(&mut self, layout: &Layout) -> exoleg::Result<()> {
+        self.layout = layout.clone();
+        self.names = layout.names();
+        self.columns = self.names.iter().map(|_| Vec::with_capacity(self.capacity)).collect();
+        Ok(())
+    }
+    fn row(&mut self, row: &Row) -> exoleg::Result<()> {
+        self.buf.clear();
+        row.values_into(&self.layout, &mut self.buf);
+        for (c, v) in self.columns.iter_mut().zip(&self.buf) {
+            c.push(*v);
+        }
+        Ok(())
+    }
+}
+
+/// Run `work` on a worker thread with the GIL released while this thread watches for Ctrl-C
+/// (and SIGTERM, through Python's handlers): on a signal, `cancel` is set, the work stops at
+/// its next check, and the signal's exception is raised.
+pub(crate) fn interruptible<T: Send>(
+    py: Python<'_>,
+    cancel: &Arc<AtomicBool>,
+    work: impl FnOnce() -> Result<T, Error> + Send,
+) -> PyResult<T> {
+    let mut signal: Option<PyErr> = None;
+    let out = py.allow_threads(|| {
+        std::thread::scope(|s| {
+            let main = std::thread::current();
+            let h = s.spawn(move || {
+                let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+                main.unpark();
+                r
+            });
+            while !h.is_finished() {
+                std::thread::park_timeout(std::time::Duration::from_millis(50));
+                if signal.is_none() && !h.is_finished() {
+                    if let Err(e) = Python::with_gil(|py| py.check_signals()) {
+                        cancel.store(true, Ordering::Relaxed);
+                        signal = Some(e);
+                    }
+                }
+            }
+            h.join()
+        })
+    });
+    if let Some(e) = signal {
+        return Err(e);
+    }
+    match out {
+        Ok(Ok(Ok(v))) => Ok(v),
+        Ok(Ok(Err(e))) => Err(py_err(e)),
+        Ok(Err(p)) | Err(p) => {
+            Err(ExoError::new_err(format!("internal error (a panic): {}", sweep::panic_message(&p))))
+        }
+    }
+}
+
+/// What a finished run gives Python: summary JSON, the columns (numpy, by name), the
+/// scenario as run (TOML).
+pub(crate) type RunOut<'py> = (String, Bound<'py, PyDict>, String);
+
+/// Run one scenario in memory (with the scenario's controller, or `controller`, a Python
+/// callable called once per sample period). With `out`, also write the outputs as `exoleg
+/// run --out` does.
 #[pyfunction]
-#[pyo3(signature = (path=None, toml_text=None, sets=Vec::new()))]
-fn run(
+#[pyo3(signature = (path=None, toml_text=None, scenario_json=None, overrides_json=None, controller=None, out=None))]
+fn run<'py>(
+    py: Python<'py>,
+    path: Option<String>,
+    toml_text: Option<String>,
+    scenario_json: Option<String>,
+    overrides_json: Option<String>,
+    controller: Option<PyObject>,
+    out: Option<String>,
+) -> PyResult<RunOut<'py>> {
+    let sc = py
+        .allow_threads(|| load(path, toml_text, scenario_json, overrides_json)?.resolve(&Resources::new()))
+        .map_err(py_err)?;
+    let scenario_toml = toml::to_string(&sc.file).map_err(|e| ExoError::new_err(e.to_string()))?;
+    let (summary, cols) = match controller {
+        Some(c) => controller::run_with_callback(py, &sc, c, out.as_deref())?,
+        None => {
+            let cancel = Arc::new(AtomicBool::new(false));
+            interruptible(py, &cancel, || stepwise::run_model(&sc, out.as_deref(), Some(cancel.clone())))?
+        }
+    };
+    Ok((summary, cols.into_dict(py)?, scenario_toml))
+}
+
+/// What the controller of a scenario is told (the C plugin's `ExolegInfo`), as JSON.
+#[pyfunction]
+#[pyo3(signature = (path=None, toml_text=None, scenario_json=None, overrides_json=None))]
+fn controller_info(
     py: Python<'_>,
     path: Option<String>,
     toml_text: Option<String>,
-    sets: Vec<String>,
-) -> PyResult<(String, Vec<String>, PyObject, usize, String)> {
-    let out = py.allow_threads(|| -> Result<_, Error> {
-        let sc = load(path, toml_text, &sets)?.resolve(&Resources::new())?;
-        let run = exoleg::study::run_to_memory(&sc)?;
-        let toml = toml::to_string(&sc.file).map_err(|e| Error::input(&sc.source_name, "scenario", e.to_string()))?;
-        Ok((run, toml))
-    });
-    let (run, toml) = out.map_err(py_err)?;
-    let rows = if run.columns.is_empty() { 0 } else { run.values.len() / run.columns.len() };
-    let bytes: Vec<u8> = run.values.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let columns = run.columns.iter().map(|c| c.to_string()).collect();
-    Ok((run.summary_json.to_string(), columns, PyBytes::new_bound(py, &bytes).into(), rows, toml))
+    scenario_json: Option<String>,
+    overrides_json: Option<String>,
+) -> PyResult<String> {
+    let sc = py
+        .allow_threads(|| load(path, toml_text, scenario_json, overrides_json)?.resolve(&Resources::new()))
+        .map_err(py_err)?;
+    Ok(stepwise::info_json(&sc.model).to_string())
 }
 
-/// A sweep or robustness study into the folder `out` (all runs, or one shard). Returns the
-/// title line and `aggregate.csv`'s text.
+/// A sweep or robustness study into the folder `out` (all runs, or one shard). With a Python
+/// `controller`, every run is made with it, one run after the other in this process. Returns
+/// the title line and `aggregate.csv`'s text (or, with `plan_only`, the plan's JSON lines).
 #[pyfunction]
-#[pyo3(signature = (kind, out, path=None, toml_text=None, sets=Vec::new(), grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, jobs=0, shard_k_n=None, plan_only=false))]
+#[pyo3(signature = (kind, out, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, jobs=0, shard_k_n=None, controller=None))]
 #[allow(clippy::too_many_arguments)]
 fn study(
     py: Python<'_>,
@@ -79,7 +223,8 @@ fn study(
     out: String,
     path: Option<String>,
     toml_text: Option<String>,
-    sets: Vec<String>,
+    scenario_json: Option<String>,
+    overrides_json: Option<String>,
     grids: Vec<String>,
     monte_carlo: Option<usize>,
     vary: Vec<String>,
@@ -87,41 +232,102 @@ fn study(
     samples: usize,
     jobs: usize,
     shard_k_n: Option<(usize, usize)>,
-    plan_only: bool,
+    controller: Option<PyObject>,
 ) -> PyResult<(String, String)> {
-    py.allow_threads(|| -> Result<(String, String), Error> {
-        let base = load(path, toml_text, &sets)?;
-        let (base_run, plan, kind) = match kind.as_str() {
-            "sweep" => {
-                let plan = sweep::plan_from_args(&base, &grids, monte_carlo, &vary)?;
-                (base.clone(), plan, shard::StudyKind::Sweep)
-            }
-            "robustness" => {
-                let (pinned, plan) = robustness::robustness_plan(&base, samples, percent)?;
-                (pinned, plan, shard::StudyKind::Robustness { percent })
-            }
-            other => return Err(Error::input("exoleg.study", "kind", format!("`{other}`: sweep or robustness"))),
-        };
-        if plan_only {
-            let mut buf = Vec::new();
-            shard::write_plan(&plan, &mut buf)?;
-            return Ok((String::new(), String::from_utf8_lossy(&buf).into_owned()));
-        }
-        if let Some((k, n)) = shard_k_n {
-            shard::parse_shard(&format!("{k}/{n}"))?;
-        }
-        let opts = sweep::RunOptions { jobs, progress: false, shard: shard_k_n.unwrap_or((0, 1)), controller: None };
+    let base = py.allow_threads(|| load(path, toml_text, scenario_json, overrides_json)).map_err(py_err)?;
+    let (base_run, plan, study_kind) =
+        study_plan(&kind, &base, &grids, monte_carlo, &vary, percent, samples).map_err(py_err)?;
+    if let Some((k, n)) = shard_k_n {
+        shard::parse_shard(&format!("{k}/{n}")).map_err(py_err)?;
+    }
+    let cancel = Arc::new(AtomicBool::new(false));
+    let factory = controller.map(|c| controller::factory(c));
+    let opts = sweep::RunOptions {
+        // A Python controller runs in this process, one run after the other.
+        jobs: if factory.is_some() { 1 } else { jobs },
+        progress: false,
+        shard: shard_k_n.unwrap_or((0, 1)),
+        controller: factory,
+        cancel: Some(cancel.clone()),
+    };
+    let work = || {
         let done = shard::run_study_into(
             &base_run,
             &base.source_name,
             &plan,
-            &kind,
+            &study_kind,
             &opts,
             shard_k_n.is_some(),
             false,
             Path::new(&out),
         )?;
         Ok((done.title, done.aggregate.csv()))
+    };
+    interruptible(py, &cancel, work)
+}
+
+/// The plan of a sweep or robustness study, and the scenario its runs start from.
+fn study_plan(
+    kind: &str,
+    base: &Scenario,
+    grids: &[String],
+    monte_carlo: Option<usize>,
+    vary: &[String],
+    percent: f64,
+    samples: usize,
+) -> Result<(Scenario, sweep::Plan, shard::StudyKind), Error> {
+    match kind {
+        "sweep" => Ok((base.clone(), sweep::plan_from_args(base, grids, monte_carlo, vary)?, shard::StudyKind::Sweep)),
+        "robustness" => {
+            let (pinned, plan) = robustness::robustness_plan(base, samples, percent)?;
+            Ok((pinned, plan, shard::StudyKind::Robustness { percent }))
+        }
+        other => Err(Error::input("exoleg.study", "kind", format!("`{other}`: sweep or robustness"))),
+    }
+}
+
+/// The runs of a plan, expanded lazily: `len()` and run `i`'s overrides on demand (a plan of
+/// 10^6 runs costs no memory until its runs are asked for).
+#[pyclass(module = "exoleg._native")]
+struct Plan {
+    plan: sweep::Plan,
+}
+
+#[pymethods]
+impl Plan {
+    fn __len__(&self) -> usize {
+        self.plan.len()
+    }
+
+    /// Run `i`'s overrides (`key=value` texts, as in `runs.jsonl`).
+    fn sets(&self, i: usize) -> PyResult<Vec<String>> {
+        if i >= self.plan.len() {
+            return Err(pyo3::exceptions::PyIndexError::new_err(format!("run {i} of {}", self.plan.len())));
+        }
+        Ok(self.plan.sets(i))
+    }
+}
+
+/// The plan of a study, without running it.
+#[pyfunction]
+#[pyo3(signature = (kind, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64))]
+#[allow(clippy::too_many_arguments)]
+fn plan(
+    py: Python<'_>,
+    kind: String,
+    path: Option<String>,
+    toml_text: Option<String>,
+    scenario_json: Option<String>,
+    overrides_json: Option<String>,
+    grids: Vec<String>,
+    monte_carlo: Option<usize>,
+    vary: Vec<String>,
+    percent: f64,
+    samples: usize,
+) -> PyResult<Plan> {
+    py.allow_threads(|| {
+        let base = load(path, toml_text, scenario_json, overrides_json)?;
+        study_plan(&kind, &base, &grids, monte_carlo, &vary, percent, samples).map(|(_, plan, _)| Plan { plan })
     })
     .map_err(py_err)
 }
@@ -129,28 +335,29 @@ fn study(
 /// Merge shard folders into `out`. Returns the title line and `aggregate.csv`'s text.
 #[pyfunction]
 fn merge(py: Python<'_>, shards: Vec<String>, out: String) -> PyResult<(String, String)> {
-    py.allow_threads(|| {
+    let cancel = Arc::new(AtomicBool::new(false));
+    interruptible(py, &cancel, || {
         let dirs: Vec<PathBuf> = shards.iter().map(PathBuf::from).collect();
         shard::merge(&dirs, Path::new(&out)).map(|m| (m.title, m.aggregate.csv()))
     })
-    .map_err(py_err)
 }
 
 /// The paper's eight cases on a base scenario. Returns their results as JSON.
 #[pyfunction]
-#[pyo3(signature = (path=None, toml_text=None, sets=Vec::new()))]
+#[pyo3(signature = (path=None, toml_text=None, scenario_json=None, overrides_json=None))]
 fn compare_cases(
     py: Python<'_>,
     path: Option<String>,
     toml_text: Option<String>,
-    sets: Vec<String>,
+    scenario_json: Option<String>,
+    overrides_json: Option<String>,
 ) -> PyResult<String> {
-    py.allow_threads(|| -> Result<String, Error> {
-        let base = load(path, toml_text, &sets)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    interruptible(py, &cancel, || {
+        let base = load(path, toml_text, scenario_json, overrides_json)?;
         let results = compare::run_cases(&base, &[])?;
         serde_json::to_string(&results).map_err(|e| Error::input("compare", "results", e.to_string()))
     })
-    .map_err(py_err)
 }
 
 /// The Python module.
@@ -159,10 +366,16 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("ExoError", m.py().get_type_bound::<ExoError>())?;
     m.add("ScenarioError", m.py().get_type_bound::<ScenarioError>())?;
     m.add("DivergedError", m.py().get_type_bound::<DivergedError>())?;
+    m.add("ControllerError", m.py().get_type_bound::<ControllerError>())?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
+    m.add_function(wrap_pyfunction!(controller_info, m)?)?;
     m.add_function(wrap_pyfunction!(study, m)?)?;
+    m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(compare_cases, m)?)?;
+    m.add_class::<Plan>()?;
+    m.add_class::<controller::Obs>()?;
+    m.add_class::<stepwise::Simulation>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

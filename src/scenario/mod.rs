@@ -331,6 +331,49 @@ impl Scenario {
         Ok(Scenario { source_name: source, base_dir: None, file })
     }
 
+    /// A scenario given as JSON data (an object of sections, the Python package's dicts), with
+    /// overrides given as data: (dotted key, JSON value) pairs.
+    pub fn from_json(
+        name: &str,
+        scenario: Option<serde_json::Value>,
+        overrides: Vec<(String, serde_json::Value)>,
+    ) -> Result<Scenario> {
+        let table = match scenario {
+            None => overrides::parse_toml(DEFAULT_SCENARIO_NAME, DEFAULT_SCENARIO_TOML)?,
+            Some(v) => match overrides::json_to_toml(name, "", v)? {
+                toml::Value::Table(t) => t,
+                _ => return Err(Error::input(name, "", "a scenario must be an object of sections")),
+            },
+        };
+        Self::from_table(name.to_string(), table, &[])?.with_values(overrides)
+    }
+
+    /// Same scenario with overrides given as data on top: (dotted key, JSON value) pairs, never
+    /// parsed from text (a key holding `=` is a key that does not exist).
+    pub fn with_values(&self, overrides: Vec<(String, serde_json::Value)>) -> Result<Scenario> {
+        if overrides.is_empty() {
+            return Ok(self.clone());
+        }
+        let mut table = match toml::Value::try_from(&self.file) {
+            Ok(toml::Value::Table(t)) => t,
+            _ => return Err(Error::input(&self.source_name, "scenario", "cannot re-serialise scenario")),
+        };
+        for (k, v) in overrides {
+            let value = overrides::json_to_toml("overrides", &k, v)?;
+            overrides::apply_value(&mut table, &k, value).map_err(|e| match e {
+                Error::Input { key, message, .. } => Error::input("overrides", key, message),
+                other => other,
+            })?;
+        }
+        let name = if self.source_name.ends_with(WITH_SET) {
+            self.source_name.clone()
+        } else {
+            format!("{}{WITH_SET}", self.source_name)
+        };
+        let s = Self::from_table(name, table, &[])?;
+        Ok(Scenario { base_dir: self.base_dir.clone(), ..s })
+    }
+
     /// Same scenario with overrides applied on top (used by `compare` and sweeps).
     pub fn with_sets(&self, sets: &[String]) -> Result<Scenario> {
         if sets.is_empty() {

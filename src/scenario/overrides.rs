@@ -23,10 +23,32 @@ pub(super) fn parse_json(name: &str, text: &str) -> Result<toml::Table> {
         Some(s) if v.get("max_abs_force_error_n").is_some() => s.clone(),
         _ => v,
     };
-    match toml::Value::try_from(strip_nulls(v)) {
-        Ok(toml::Value::Table(t)) => Ok(t),
-        Ok(_) => Err(Error::input(name, "", "a scenario must be a JSON object")),
-        Err(e) => Err(Error::input(name, "", format!("cannot use as scenario: {e}"))),
+    match json_to_toml(name, "", v)? {
+        toml::Value::Table(t) => Ok(t),
+        _ => Err(Error::input(name, "", "a scenario must be a JSON object")),
+    }
+}
+
+/// A JSON value as a scenario value (null = absent = default); errors name `key`.
+pub(super) fn json_to_toml(name: &str, key: &str, v: serde_json::Value) -> Result<toml::Value> {
+    if let Some(n) = first_out_of_range_integer(&v) {
+        return Err(Error::input(
+            name,
+            key,
+            format!("integer {n} is out of range (a scenario integer fits in 64 bits)"),
+        ));
+    }
+    toml::Value::try_from(strip_nulls(v))
+        .map_err(|e| Error::input(name, key, format!("cannot use as a scenario value: {e}")))
+}
+
+/// An integer beyond i64 in a JSON value (u64 above i64::MAX), as text.
+fn first_out_of_range_integer(v: &serde_json::Value) -> Option<String> {
+    match v {
+        serde_json::Value::Number(n) if n.is_u64() && n.as_i64().is_none() => Some(n.to_string()),
+        serde_json::Value::Array(a) => a.iter().find_map(first_out_of_range_integer),
+        serde_json::Value::Object(m) => m.values().find_map(first_out_of_range_integer),
+        _ => None,
     }
 }
 
@@ -54,6 +76,13 @@ pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
         .split_once('=')
         .ok_or_else(|| Error::input("--set", set, "expected key=value (e.g. controller.gamma=200)"))?;
     let key = key.trim();
+    let value = parse_value(key, raw.trim())?;
+    apply_value(table, key, value)
+}
+
+/// Set the dotted `key` to `value` (a table merges into the table it overrides): an override
+/// given as data (the Python package), never parsed from text.
+pub(super) fn apply_value(table: &mut toml::Table, key: &str, value: toml::Value) -> Result<()> {
     let parts: Vec<&str> = key.split('.').collect();
     if parts.iter().any(|p| p.trim().is_empty()) {
         return Err(Error::input("--set", key, "empty key segment"));
@@ -66,7 +95,6 @@ pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
             format!("{} key segments; scenario keys have at most {MAX_KEY_DEPTH}", parts.len()),
         ));
     }
-    let value = parse_value(key, raw.trim())?;
     let mut cur = table;
     for (i, p) in parts.iter().enumerate() {
         if i + 1 == parts.len() {

@@ -280,6 +280,11 @@ impl Simulation {
         self.k >= self.sc.steps
     }
 
+    /// The true force error F_L - F_d (N) now (the state, not a reading).
+    pub fn force_error_n(&self) -> f64 {
+        self.state.hyd.force_n - self.dynamics().reference_at(self.t_s(), &self.held).value
+    }
+
     /// True when the next step starts at a sample instant of a sampled controller.
     pub fn is_sample_step(&self) -> bool {
         matches!(&self.control, ControlBlock::Sampled(l) if l.hold.is_sample(self.k))

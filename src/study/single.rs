@@ -129,22 +129,63 @@ pub fn run_into_with(
     extra: Option<&mut dyn RecordSink>,
 ) -> Result<RunReport> {
     let sim = Simulation::build(sc.model.clone(), source)?;
-    let mut csv = CsvSink::create(&dir.join("timeseries.csv"))?;
-    let mut plots = PlotBuffer::new();
-    let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut csv, &mut plots];
+    let mut files = RunFiles::create(dir)?;
+    let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut files];
     if let Some(e) = extra {
         sinks.push(e);
     }
     let (summary, design) = crate::session::run_simulation(sim, &mut Tee(sinks))?;
-    csv.finish()?;
-    let criteria = check_criteria(&sc.file.criteria, &summary);
-    let file = SummaryFile::new(sc, &summary, &criteria, design);
-    write_json(&dir.join("summary.json"), &file)?;
-    force_tracking_png(&dir.join("force_tracking.png"), &plots, title)?;
-    if plots.has_knee() {
-        knee_tracking_png(&dir.join("knee_tracking.png"), &plots, title)?;
+    files.finish(sc, title, summary, design)
+}
+
+/// The files of one run as they are written: `timeseries.csv` streamed, the plots' rows kept
+/// (bounded); [`RunFiles::finish`] adds `summary.json` and the plots. A [`RecordSink`].
+pub struct RunFiles {
+    dir: std::path::PathBuf,
+    csv: CsvSink,
+    plots: PlotBuffer,
+}
+
+impl RunFiles {
+    /// Start writing into `dir` (which must exist).
+    pub fn create(dir: &Path) -> Result<Self> {
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            csv: CsvSink::create(&dir.join("timeseries.csv"))?,
+            plots: PlotBuffer::new(),
+        })
     }
-    Ok(RunReport { summary, criteria })
+
+    /// Close `timeseries.csv`, write `summary.json` (figures, criteria, inputs, the scenario)
+    /// and the plots titled `title`.
+    pub fn finish(
+        self,
+        sc: &ResolvedScenario,
+        title: &str,
+        summary: Summary,
+        design: Option<serde_json::Value>,
+    ) -> Result<RunReport> {
+        self.csv.finish()?;
+        let criteria = check_criteria(&sc.file.criteria, &summary);
+        let file = SummaryFile::new(sc, &summary, &criteria, design);
+        write_json(&self.dir.join("summary.json"), &file)?;
+        force_tracking_png(&self.dir.join("force_tracking.png"), &self.plots, title)?;
+        if self.plots.has_knee() {
+            knee_tracking_png(&self.dir.join("knee_tracking.png"), &self.plots, title)?;
+        }
+        Ok(RunReport { summary, criteria })
+    }
+}
+
+impl RecordSink for RunFiles {
+    fn start(&mut self, layout: &crate::record::Layout) -> Result<()> {
+        self.csv.start(layout)?;
+        self.plots.start(layout)
+    }
+    fn row(&mut self, row: &crate::record::Row) -> Result<()> {
+        self.csv.row(row)?;
+        self.plots.row(row)
+    }
 }
 
 /// Write `leg_motion.gif` of a leg run whose rows `anim` collected.

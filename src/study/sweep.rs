@@ -262,6 +262,8 @@ pub struct RunOptions {
     pub shard: (usize, usize),
     /// The caller's controller for every run (None: each run's `controller.kind`).
     pub controller: Option<std::sync::Arc<ControllerFactory>>,
+    /// Set by the caller to stop the study (its runs check it as they go).
+    pub cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 /// The number of worker threads for `runs` runs.
@@ -319,7 +321,7 @@ fn simulate(
         }
         None => {
             let sim = crate::sim::Simulation::build(sc.model.clone(), source)?;
-            crate::session::run_simulation(sim, &mut crate::record::NullSink).map(|r| r.0)
+            crate::session::run_cancellable(sim, &mut crate::record::NullSink, opts.cancel.clone()).map(|r| r.0)
         }
     }
 }
@@ -340,6 +342,7 @@ fn run_one(
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate(&sc, i, opts, run_dir)))
         .unwrap_or_else(|p| Err(Error::Usage(format!("internal error (a panic): {}", panic_message(&p)))));
     Ok(match result {
+        Err(Error::Interrupted) => return Err(Error::Interrupted),
         Ok(summary) => {
             let criteria = check_criteria(&sc.file.criteria, &summary);
             RunLine {
@@ -433,6 +436,9 @@ pub fn run_plan(
     let bar = progress_bar(opts.progress && idx.len() > 1, idx.len());
     let mut agg = Aggregate::default();
     for chunk in idx.chunks(CHUNK) {
+        if opts.cancel.as_ref().is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed)) {
+            return Err(Error::Interrupted);
+        }
         let lines: Vec<RunLine> = pool.install(|| {
             chunk
                 .par_iter()

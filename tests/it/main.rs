@@ -24,3 +24,4 @@ mod shard;
 mod shipped_outputs;
 mod validation;
 mod walking;
+mod your_controller;

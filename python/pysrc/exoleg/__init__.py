@@ -2,27 +2,39 @@
 
 Python bindings of the exoleg Rust simulator. Units are SI and stated in the names
 (``force_n``, ``t_s``, ``knee_angle_deg``, ...), exactly as in ``timeseries.csv`` and
-``summary.json`` (see the project's README). The simulations release the GIL, so Python
-threads and process pools run them in parallel.
+``summary.json`` (see the project's README). Simulations without a Python controller release
+the GIL (Python threads run them in parallel) and stop on Ctrl-C.
 
 >>> import exoleg
 >>> r = exoleg.run()                                   # the embedded default scenario
 >>> r.summary["max_abs_force_error_n"]
 >>> r.timeseries["load_force_n"]                       # numpy array, N
 >>> exoleg.run("gait.toml", {"controller.gamma": 200})
+
+Your own controller in the loop (``controller.sample_period_s`` > 0):
+
+>>> def pi(obs):                                       # called once per sample period
+...     return 1e-4 * (obs.ref_force_n - obs.force_n)   # the valve command
+>>> exoleg.run(None, {"controller.sample_period_s": 0.001}, controller=pi)
+>>> sim = exoleg.Simulation(None, {"controller.sample_period_s": 0.001})
+>>> obs = sim.reset(seed=1)
+>>> while not sim.done:
+...     obs = sim.step(1e-4 * (obs.ref_force_n - obs.force_n))
+>>> result = sim.finish()
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import _native
-from ._native import DivergedError, ExoError, ScenarioError
+from ._native import ControllerError, DivergedError, ExoError, Obs, ScenarioError
 
 __all__ = [
     "run",
@@ -31,71 +43,93 @@ __all__ = [
     "merge",
     "compare",
     "plan",
+    "controller_info",
+    "Simulation",
+    "Obs",
     "Run",
     "Study",
+    "Plan",
     "ExoError",
     "ScenarioError",
     "DivergedError",
+    "ControllerError",
 ]
 __version__ = _native.__version__
 
 ScenarioLike = Union[None, str, os.PathLike, Mapping[str, Any]]
+Controller = Callable[[Obs], Union[float, Mapping[str, float]]]
 
 
-def _toml_value(v: Any) -> str:
-    """A Python value as a TOML value (for ``--set``-style overrides)."""
+def _plain(v: Any, key: str) -> Any:
+    """A Python value as plain JSON data (numpy scalars and arrays included); errors name the key."""
+    if v is None or isinstance(v, (bool, str)):
+        return v
+    if isinstance(v, np.generic):
+        v = v.item()
     if isinstance(v, bool):
-        return "true" if v else "false"
+        return v
     if isinstance(v, int):
-        return str(v)
+        if key == "seed" and 2**63 <= v < 2**64:
+            return str(v)  # a seed is unsigned; TOML integers are signed (the CLI takes text)
+        if not -(2**63) <= v < 2**63:
+            raise ScenarioError(f"overrides: {key}: integer {v} is out of range (a scenario integer fits in 64 bits)")
+        return v
     if isinstance(v, float):
-        r = repr(v)
-        if r in ("inf", "-inf", "nan"):
-            return r
-        return r if ("." in r or "e" in r or "n" in r) else r + ".0"
-    if isinstance(v, str):
-        return json.dumps(v)
+        if not math.isfinite(v):
+            raise ScenarioError(f"overrides: {key}: must be a finite number, got {v}")
+        return v
+    if isinstance(v, np.ndarray):
+        return [_plain(x, key) for x in v.tolist()]
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+        return [_plain(x, f"{key}.{i}") for i, x in enumerate(v)]
     if isinstance(v, Mapping):
-        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
-    raise ScenarioError(f"cannot write {v!r} ({type(v).__name__}) as a scenario value")
+        out = {}
+        for k, x in v.items():
+            if not isinstance(k, str):
+                raise ScenarioError(f"overrides: {key}: a key must be a string, got {k!r}")
+            out[k] = _plain(x, f"{key}.{k}" if key else k)
+        return out
+    raise ScenarioError(f"overrides: {key}: cannot use {v!r} ({type(v).__name__}) as a scenario value")
 
 
-def _flatten(d: Mapping[str, Any], prefix: str = "") -> List[str]:
-    """A nested dict of sections as dotted ``key=value`` overrides."""
-    out: List[str] = []
-    for k, v in d.items():
-        if isinstance(v, Mapping):
-            out.extend(_flatten(v, f"{prefix}{k}."))
-        else:
-            out.append(f"{prefix}{k}={_toml_value(v)}")
-    return out
+def _scenario(scenario: ScenarioLike) -> Dict[str, Any]:
+    """The scenario arguments of the native layer: a path, TOML text, or a dict as JSON data.
+
+    A ``str`` is a path (a path may hold ``=``), unless it holds a newline and names no file:
+    then it is scenario text (TOML). A dict is a scenario file's sections.
+    """
+    if scenario is None:
+        return {}
+    if isinstance(scenario, Mapping):
+        return {"scenario_json": json.dumps(_plain(scenario, ""))}
+    if isinstance(scenario, os.PathLike):
+        return {"path": os.fspath(scenario)}
+    if isinstance(scenario, str):
+        if "\n" in scenario and not os.path.exists(scenario):
+            return {"toml_text": scenario}
+        return {"path": scenario}
+    raise ScenarioError(f"scenario: expected a path, TOML text or a dict, got {type(scenario).__name__}")
 
 
-def _sets(overrides: Optional[Mapping[str, Any]]) -> List[str]:
-    """``{"controller.gamma": 200}`` -> ``["controller.gamma=200"]``."""
+def _overrides(overrides: Optional[Mapping[str, Any]]) -> Optional[str]:
+    """``{"controller.gamma": 200}`` as JSON data: [[key, value], ...] (keys are keys: a key
+    holding ``=`` is a key that does not exist)."""
     if overrides is None:
-        return []
+        return None
     if not isinstance(overrides, Mapping):
         raise ScenarioError("overrides: expected a dict of dotted keys, e.g. {'controller.gamma': 200}")
-    return [f"{k}={_toml_value(v)}" for k, v in overrides.items()]
+    pairs = []
+    for k, v in overrides.items():
+        if not isinstance(k, str):
+            raise ScenarioError(f"overrides: a key must be a string, got {k!r}")
+        pairs.append([k, _plain(v, k)])
+    return json.dumps(pairs)
 
 
-def _scenario(scenario: ScenarioLike) -> Tuple[Optional[str], Optional[str], List[str]]:
-    """(path, toml text, extra sets) for the native layer."""
-    if scenario is None:
-        return None, None, []
-    if isinstance(scenario, Mapping):
-        return None, "", _flatten(scenario)
-    if isinstance(scenario, os.PathLike):
-        return os.fspath(scenario), None, []
-    if isinstance(scenario, str):
-        # TOML text has a newline or an `=`; anything else is a path.
-        if "\n" in scenario or "=" in scenario:
-            return None, scenario, []
-        return scenario, None, []
-    raise ScenarioError(f"scenario: expected a path, TOML text or a dict, got {type(scenario).__name__}")
+def _args(scenario: ScenarioLike, overrides: Optional[Mapping[str, Any]]) -> Dict[str, Any]:
+    a = _scenario(scenario)
+    a["overrides_json"] = _overrides(overrides)
+    return a
 
 
 @dataclass(frozen=True)
@@ -112,21 +146,102 @@ class Run:
     scenario: str
 
 
-def run(scenario: ScenarioLike = None, overrides: Optional[Mapping[str, Any]] = None) -> Run:
+def _run(result: Tuple[str, Dict[str, np.ndarray], str]) -> Run:
+    summary, columns, resolved = result
+    return Run(json.loads(summary), dict(columns), resolved)
+
+
+def run(
+    scenario: ScenarioLike = None,
+    overrides: Optional[Mapping[str, Any]] = None,
+    *,
+    controller: Optional[Controller] = None,
+    out: Optional[Union[str, os.PathLike]] = None,
+) -> Run:
     """Run one scenario headless and return its figures and time series.
 
     ``scenario``: ``None`` (the embedded default, the paper's Figure 5 case), a path to a
     scenario TOML (or a ``summary.json`` to reproduce a run), TOML text, or a dict of sections.
     ``overrides``: dotted keys, ``{"controller.gamma": 200, "sim.duration_s": 2.0}``.
+    ``controller``: your controller, a callable ``controller(obs)`` called once per sample
+    period (``controller.sample_period_s`` > 0) with the readings (an :class:`Obs`, reused:
+    keep its numbers, not the object); it returns the valve command, or a dict with
+    ``valve_command`` and logged channels (columns ``log_<name>``). ``out``: also write the
+    outputs of ``exoleg run`` there (whole, or not at all).
 
-    Raises ``ScenarioError`` (a ``ValueError``) for bad input, with the CLI's one-line message,
-    and ``DivergedError`` when the run diverges.
+    Raises ``ScenarioError`` (a ``ValueError``) for bad input, with the CLI's one-line message;
+    ``DivergedError`` when the run diverges or its controller stops it; ``ControllerError``
+    when the controller raises (its exception is the cause) or returns no usable command.
     """
-    path, text, extra = _scenario(scenario)
-    summary, columns, data, rows, resolved = _native.run(path, text, extra + _sets(overrides))
-    values = np.frombuffer(data, dtype="<f8").reshape(rows, len(columns))
-    series = {c: values[:, i].copy() for i, c in enumerate(columns)}
-    return Run(json.loads(summary), series, resolved)
+    o = None if out is None else os.fspath(out)
+    return _run(_native.run(**_args(scenario, overrides), controller=controller, out=o))
+
+
+def controller_info(scenario: ScenarioLike = None, overrides: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:
+    """What a controller of the scenario is told: ``sample_period_s``, ``valve_command_limit``,
+    the nominal force model (``nominal``: n1, n2 in N/m, n3 in 1/s, tau_s in s, k_s), ``seed``,
+    ``steps``, ``dt_s`` (the C plugin's ``ExolegInfo``)."""
+    return json.loads(_native.controller_info(**_args(scenario, overrides)))
+
+
+class Simulation:
+    """A run whose loop you own (sampled: ``controller.sample_period_s`` > 0).
+
+    >>> sim = exoleg.Simulation("gait.toml", {"controller.sample_period_s": 0.001})
+    >>> obs = sim.reset(seed=1)            # the readings at t = 0
+    >>> while not sim.done:
+    ...     obs = sim.step(my_command(obs))  # held for one sample period; the next readings
+    >>> result = sim.finish()               # an exoleg.Run; with out=..., the files too
+
+    ``step`` takes the valve command or a dict with ``valve_command`` and logged channels.
+    ``obs`` is one object updated in place at every sample. ``force_error_n`` is the true
+    F_L - F_d now (not a reading). ``info``: what the controller is told (see
+    :func:`controller_info`).
+    """
+
+    def __init__(
+        self,
+        scenario: ScenarioLike = None,
+        overrides: Optional[Mapping[str, Any]] = None,
+        *,
+        out: Optional[Union[str, os.PathLike]] = None,
+    ) -> None:
+        o = None if out is None else os.fspath(out)
+        self._sim = _native.Simulation(**_args(scenario, overrides), out=o)
+        self.info: Dict[str, Any] = json.loads(self._sim.info_json)
+
+    def reset(self, seed: Optional[int] = None) -> Obs:
+        """Start again from t = 0 (with ``seed`` in place of the scenario's); the first readings."""
+        return self._sim.reset(None if seed is None else int(seed))
+
+    def step(self, command: Union[float, Mapping[str, float]]) -> Obs:
+        """Hold ``command`` for one sample period; the readings of the next sample."""
+        return self._sim.step(command)
+
+    @property
+    def done(self) -> bool:
+        """True once the run has taken all its steps."""
+        return self._sim.done
+
+    @property
+    def t_s(self) -> float:
+        """Simulated time (s)."""
+        return self._sim.t_s
+
+    @property
+    def obs(self) -> Obs:
+        """The readings of the last sample."""
+        return self._sim.obs
+
+    @property
+    def force_error_n(self) -> float:
+        """The true force error F_L - F_d (N) now."""
+        return self._sim.force_error_n
+
+    def finish(self) -> Run:
+        """Record the end (or now, if you stop early) and return the run, as :func:`run` does;
+        the files are written if the simulation was given ``out``."""
+        return _run(self._sim.finish())
 
 
 @dataclass(frozen=True)
@@ -148,23 +263,43 @@ class Study:
             return [json.loads(line) for line in f if line.strip()]
 
 
-def _study(kind: str, scenario: ScenarioLike, out: str, overrides, shard, jobs, plan_only=False, **kw) -> Tuple[str, str]:
-    path, text, extra = _scenario(scenario)
-    if shard is not None:
-        if not (isinstance(shard, (tuple, list)) and len(shard) == 2):
-            raise ScenarioError(f"shard: expected (K, N), got {shard!r}")
-        shard = (int(shard[0]), int(shard[1]))
-    return _native.study(
-        kind,
-        os.fspath(out),
-        path,
-        text,
-        extra + _sets(overrides),
-        jobs=int(jobs),
-        shard_k_n=shard,
-        plan_only=plan_only,
-        **kw,
-    )
+def _grid_value(key: str, v: Any) -> str:
+    """One grid value as the text of a ``--grid`` entry (numbers, booleans, strings)."""
+    v = _plain(v, key)
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, str) and "," not in v:
+        return json.dumps(v)
+    raise ScenarioError(f"grid: {key}: a grid value is a number, a boolean or a string without commas, got {v!r}")
+
+
+def _study_args(grid, vary) -> Dict[str, Any]:
+    grids = []
+    for k, vs in (grid or {}).items():
+        if isinstance(vs, (str, bytes)) or not hasattr(vs, "__iter__"):
+            raise ScenarioError(f"grid: {k}: expected a list of values, got {vs!r}")
+        vals = list(vs.tolist() if isinstance(vs, np.ndarray) else vs)
+        grids.append(f"{k}={','.join(_grid_value(k, v) for v in vals)}")
+    if vary is not None and not isinstance(vary, Mapping):
+        raise ScenarioError("vary: expected a dict, e.g. {'hydraulics.beta_pa': 'pct(10)'}")
+    varies = []
+    for k, d in (vary or {}).items():
+        if not isinstance(d, str):
+            raise ScenarioError(f"vary: {k}: expected a distribution text such as 'pct(10)', got {d!r}")
+        varies.append(f"{k}={d}")
+    return {"grids": grids, "vary": varies}
+
+
+def _shard(shard) -> Optional[Tuple[int, int]]:
+    if shard is None:
+        return None
+    if not (isinstance(shard, (tuple, list)) and len(shard) == 2):
+        raise ScenarioError(f"shard: expected (K, N), got {shard!r}")
+    return (int(shard[0]), int(shard[1]))
 
 
 def sweep(
@@ -177,17 +312,27 @@ def sweep(
     out: Union[str, os.PathLike] = "out/sweep",
     jobs: int = 0,
     shard: Optional[Tuple[int, int]] = None,
+    controller: Optional[Controller] = None,
 ) -> Study:
     """Run many variations of a scenario in parallel, like ``exoleg sweep``.
 
     ``grid``: ``{"controller.gamma": [100, 200]}`` (full factorial), or ``monte_carlo=N`` with
     ``vary={"hydraulics.beta_pa": "pct(10)"}`` (``uniform(lo,hi)``, ``normal(mean,sd)``,
     ``pct(p)``). ``shard=(K, N)`` runs only the runs with index % N == K and writes a shard
-    folder for :func:`merge`. ``jobs``: worker threads (0 = all cores).
+    folder for :func:`merge`. ``jobs``: worker threads (0 = all cores). ``controller``: your
+    Python controller for every run (as in :func:`run`); the runs then go one after the other
+    in this process (``jobs`` is 1), and a run whose controller fails is a failed line.
     """
-    grids = [f"{k}={','.join(_toml_value(v) for v in vs)}" for k, vs in (grid or {}).items()]
-    varies = [f"{k}={d}" for k, d in (vary or {}).items()]
-    title, agg = _study("sweep", scenario, out, overrides, shard, jobs, grids=grids, monte_carlo=monte_carlo, vary=varies)
+    title, agg = _native.study(
+        "sweep",
+        os.fspath(out),
+        **_args(scenario, overrides),
+        **_study_args(grid, vary),
+        monte_carlo=monte_carlo,
+        jobs=int(jobs),
+        shard_k_n=_shard(shard),
+        controller=controller,
+    )
     return Study(title, agg, os.fspath(out))
 
 
@@ -200,11 +345,45 @@ def robustness(
     out: Union[str, os.PathLike] = "out/robustness",
     jobs: int = 0,
     shard: Optional[Tuple[int, int]] = None,
+    controller: Optional[Controller] = None,
 ) -> Study:
     """The robustness report, like ``exoleg robustness`` (the plant's parameters +-``percent``
-    %, the controller keeping its nominal model, the paper's Table 2 disturbances)."""
-    title, agg = _study("robustness", scenario, out, overrides, shard, jobs, percent=float(percent), samples=int(samples))
+    %, the controller keeping its nominal model, the paper's Table 2 disturbances).
+    ``controller``: as in :func:`sweep`."""
+    title, agg = _native.study(
+        "robustness",
+        os.fspath(out),
+        **_args(scenario, overrides),
+        percent=float(percent),
+        samples=int(samples),
+        jobs=int(jobs),
+        shard_k_n=_shard(shard),
+        controller=controller,
+    )
     return Study(title, agg, os.fspath(out))
+
+
+class Plan(Sequence):
+    """The runs of a study, expanded lazily: ``len(plan)``, ``plan[i]`` (``{"index": i,
+    "sets": [...]}``), iteration. A plan of 10^6 runs costs nothing until its runs are read."""
+
+    def __init__(self, native: Any) -> None:
+        self._p = native
+
+    def __len__(self) -> int:
+        return len(self._p)
+
+    def __getitem__(self, i):  # type: ignore[override]
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        n = len(self)
+        if i < 0:
+            i += n
+        return {"index": i, "sets": self._p.sets(i)}
+
+    def __iter__(self) -> Iterator[Dict[str, Any]]:
+        for i in range(len(self)):
+            yield self[i]
 
 
 def plan(
@@ -214,16 +393,15 @@ def plan(
     monte_carlo: Optional[int] = None,
     vary: Optional[Mapping[str, str]] = None,
     overrides: Optional[Mapping[str, Any]] = None,
-) -> List[Dict[str, Any]]:
+) -> Plan:
     """The expanded runs of a sweep (index and overrides of each), without running them."""
-    grids = [f"{k}={','.join(_toml_value(v) for v in vs)}" for k, vs in (grid or {}).items()]
-    varies = [f"{k}={d}" for k, d in (vary or {}).items()]
-    _, text = _study("sweep", scenario, "", overrides, None, 0, True, grids=grids, monte_carlo=monte_carlo, vary=varies)
-    return [json.loads(line) for line in text.splitlines() if line.strip()]
+    return Plan(_native.plan("sweep", **_args(scenario, overrides), **_study_args(grid, vary), monte_carlo=monte_carlo))
 
 
 def merge(shards: Sequence[Union[str, os.PathLike]], out: Union[str, os.PathLike]) -> Study:
     """Merge shard folders into what the unsharded study writes (``exoleg merge``)."""
+    if isinstance(shards, (str, bytes, os.PathLike)):
+        raise ScenarioError("merge: expected a list of shard folders")
     title, agg = _native.merge([os.fspath(s) for s in shards], os.fspath(out))
     return Study(title, agg, os.fspath(out))
 
@@ -231,6 +409,7 @@ def merge(shards: Sequence[Union[str, os.PathLike]], out: Union[str, os.PathLike
 def compare(scenario: ScenarioLike = None, overrides: Optional[Mapping[str, Any]] = None) -> List[Dict[str, Any]]:
     """The paper's eight cases (Tables 3 and 4) on a base scenario, like ``exoleg compare``.
     Each result: case, controller, max errors (N), convergence times (s), the paper's figures."""
-    path, text, extra = _scenario(scenario)
-    return json.loads(_native.compare_cases(path, text, extra + _sets(overrides)))
+    return json.loads(_native.compare_cases(**_args(scenario, overrides)))
+
+
 from . import distributed  # noqa: E402,F401  (needs dask only when used)

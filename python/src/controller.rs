@@ -1,0 +1,356 @@
+//! A Python callable as the run's controller: called once per sample period with one reused
+//! [`Obs`] (the readings by name), it returns the valve command, or a dict with
+//! `valve_command` and logged channels (numbers, the same keys at every sample).
+
+use crate::{py_err, ColumnSink, ControllerError};
+use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput, MAX_LOGGED};
+use exoleg::scenario::ResolvedScenario;
+use exoleg::sim::{ControllerSource, Simulation};
+use exoleg::study::sweep::ControllerFactory;
+use exoleg::Error;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyFloat, PyInt};
+use std::sync::{Arc, Mutex};
+
+/// The readings of one sample, by name (SI units; see the README's "Your controller"). One
+/// object is reused for every sample of a run: keep the numbers, not the object.
+#[pyclass(module = "exoleg._native")]
+#[derive(Clone, Default)]
+pub struct Obs {
+    /// Sample instant (s).
+    #[pyo3(get)]
+    pub t_s: f64,
+    /// Sample period (s).
+    #[pyo3(get)]
+    pub period_s: f64,
+    /// Load cell (N).
+    #[pyo3(get)]
+    pub force_n: f64,
+    /// Its firmware difference (N/s).
+    #[pyo3(get)]
+    pub force_rate_n_per_s: f64,
+    /// Spool LVDT (m; NaN without the sensor).
+    #[pyo3(get)]
+    pub spool_m: f64,
+    /// Piston position (m).
+    #[pyo3(get)]
+    pub piston_m: f64,
+    /// Piston velocity (m/s).
+    #[pyo3(get)]
+    pub piston_velocity_m_s: f64,
+    /// Piston acceleration (m/s^2).
+    #[pyo3(get)]
+    pub piston_accel_m_s2: f64,
+    /// Knee flexion (rad).
+    #[pyo3(get)]
+    pub knee_rad: f64,
+    /// Knee rate (rad/s).
+    #[pyo3(get)]
+    pub knee_rate_rad_s: f64,
+    /// Desired force now (N).
+    #[pyo3(get)]
+    pub ref_force_n: f64,
+    /// Its rate (N/s).
+    #[pyo3(get)]
+    pub ref_force_rate_n_per_s: f64,
+    /// Its second derivative (N/s^2).
+    #[pyo3(get)]
+    pub ref_force_accel_n_per_s2: f64,
+    /// Desired force one sample ahead (N).
+    #[pyo3(get)]
+    pub next_ref_force_n: f64,
+    /// Its rate (N/s).
+    #[pyo3(get)]
+    pub next_ref_force_rate_n_per_s: f64,
+    /// Its second derivative (N/s^2).
+    #[pyo3(get)]
+    pub next_ref_force_accel_n_per_s2: f64,
+    /// The valve command limit (0 = none).
+    #[pyo3(get)]
+    pub valve_command_limit: f64,
+    /// Raw A/D counts (force, spool, piston, knee, piston velocity; None = not quantised).
+    #[pyo3(get)]
+    pub counts: Counts,
+}
+
+/// Raw A/D counts of the five channels (None = not quantised).
+pub type Counts = (Option<i64>, Option<i64>, Option<i64>, Option<i64>, Option<i64>);
+
+/// The reading names of [`Obs`] in the order of [`Obs::array`] (the Gymnasium observation).
+pub const OBS_FIELDS: [&str; 17] = [
+    "t_s",
+    "period_s",
+    "force_n",
+    "force_rate_n_per_s",
+    "spool_m",
+    "piston_m",
+    "piston_velocity_m_s",
+    "piston_accel_m_s2",
+    "knee_rad",
+    "knee_rate_rad_s",
+    "ref_force_n",
+    "ref_force_rate_n_per_s",
+    "ref_force_accel_n_per_s2",
+    "next_ref_force_n",
+    "next_ref_force_rate_n_per_s",
+    "next_ref_force_accel_n_per_s2",
+    "valve_command_limit",
+];
+
+impl Obs {
+    /// Fill from one sample.
+    pub fn set(&mut self, s: &SampleInput) {
+        let c = s.counts.0;
+        *self = Obs {
+            t_s: s.t_s,
+            period_s: s.period_s,
+            force_n: s.y.force_n,
+            force_rate_n_per_s: s.y.force_rate_n_per_s,
+            spool_m: s.y.spool_m,
+            piston_m: s.y.piston_m,
+            piston_velocity_m_s: s.y.piston_velocity_m_s,
+            piston_accel_m_s2: s.y.piston_accel_m_s2,
+            knee_rad: s.y.knee_rad,
+            knee_rate_rad_s: s.y.knee_rate_rad_s,
+            ref_force_n: s.r.value,
+            ref_force_rate_n_per_s: s.r.rate,
+            ref_force_accel_n_per_s2: s.r.accel,
+            next_ref_force_n: s.r_next.value,
+            next_ref_force_rate_n_per_s: s.r_next.rate,
+            next_ref_force_accel_n_per_s2: s.r_next.accel,
+            valve_command_limit: s.valve_limit.0,
+            counts: (c[0], c[1], c[2], c[3], c[4]),
+        };
+    }
+
+    fn values(&self) -> [f64; 17] {
+        [
+            self.t_s,
+            self.period_s,
+            self.force_n,
+            self.force_rate_n_per_s,
+            self.spool_m,
+            self.piston_m,
+            self.piston_velocity_m_s,
+            self.piston_accel_m_s2,
+            self.knee_rad,
+            self.knee_rate_rad_s,
+            self.ref_force_n,
+            self.ref_force_rate_n_per_s,
+            self.ref_force_accel_n_per_s2,
+            self.next_ref_force_n,
+            self.next_ref_force_rate_n_per_s,
+            self.next_ref_force_accel_n_per_s2,
+            self.valve_command_limit,
+        ]
+    }
+}
+
+#[pymethods]
+impl Obs {
+    /// The reading names, in the order of [`Obs::array`].
+    #[classattr]
+    fn fields() -> Vec<&'static str> {
+        OBS_FIELDS.to_vec()
+    }
+
+    /// The readings as a numpy float64 vector, in the order of `Obs.fields`.
+    fn array<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
+        numpy::PyArray1::from_slice_bound(py, &self.values())
+    }
+
+    /// A copy that later samples do not change.
+    fn copy(&self) -> Obs {
+        self.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        let parts: Vec<String> = OBS_FIELDS.iter().zip(self.values()).map(|(n, v)| format!("{n}={v}")).collect();
+        format!("Obs({})", parts.join(", "))
+    }
+}
+
+/// What a Python controller returned, as a command and its logged values.
+pub struct Command {
+    pub output: ControlOutput,
+    pub log: Option<Vec<(String, f64)>>,
+}
+
+/// Read a controller's return value: a number, or a dict with `valve_command` and logged
+/// numbers. Errors say what was wrong.
+pub fn read_command(v: &Bound<'_, PyAny>) -> Result<Command, String> {
+    if let Ok(f) = v.downcast::<PyFloat>() {
+        return Ok(Command { output: ControlOutput::command(f.value()), log: None });
+    }
+    if v.is_instance_of::<PyInt>() || v.hasattr("__float__").unwrap_or(false) && !v.is_instance_of::<PyDict>() {
+        if let Ok(x) = v.extract::<f64>() {
+            return Ok(Command { output: ControlOutput::command(x), log: None });
+        }
+    }
+    let Ok(d) = v.downcast::<PyDict>() else {
+        return Err(format!(
+            "it returned {} ({}); expected the valve command (a number) or a dict with `valve_command`",
+            v.repr().map_or("?".into(), |r| r.to_string()),
+            v.get_type().name().map_or("?".into(), |n| n.to_string())
+        ));
+    };
+    let mut u = None;
+    let mut log = Vec::new();
+    for (k, x) in d.iter() {
+        let key: String = k.extract().map_err(|_| "a key of the returned dict is not a string".to_string())?;
+        let val: f64 = x.extract().map_err(|_| format!("`{key}` in the returned dict is not a number"))?;
+        if key == "valve_command" {
+            u = Some(val);
+        } else {
+            log.push((key, val));
+        }
+    }
+    let u = u.ok_or("the returned dict has no `valve_command`")?;
+    Ok(Command { output: ControlOutput::command(u), log: Some(log) })
+}
+
+/// A Python callable as a [`DiscreteController`]. A failure keeps the Python exception in
+/// `error` for the caller to raise.
+pub struct PyController {
+    callable: PyObject,
+    obs: Py<Obs>,
+    error: Arc<Mutex<Option<PyErr>>>,
+    log_names: Option<Vec<String>>,
+    log: [f64; MAX_LOGGED],
+}
+
+impl PyController {
+    /// A controller calling `callable`; failures go to `error`.
+    pub fn new(py: Python<'_>, callable: PyObject, error: Arc<Mutex<Option<PyErr>>>) -> PyResult<Self> {
+        Ok(Self { callable, obs: Py::new(py, Obs::default())?, error, log_names: None, log: [0.0; MAX_LOGGED] })
+    }
+
+    fn fail(&self, t: f64, e: PyErr) -> ControlStop {
+        let msg = format!("the Python controller raised at t = {t:.6} s: {e}");
+        *self.error.lock().unwrap_or_else(|p| p.into_inner()) = Some(e);
+        ControlStop { message: msg }
+    }
+
+    /// Keep the logged values; the names are fixed by the first sample.
+    fn take_log(&mut self, log: Option<Vec<(String, f64)>>) -> Result<(), String> {
+        let log = log.unwrap_or_default();
+        match &self.log_names {
+            None => {
+                if log.len() > MAX_LOGGED {
+                    return Err(format!("it logs {} channels, at most {MAX_LOGGED}", log.len()));
+                }
+                self.log_names = Some(log.iter().map(|(k, _)| k.clone()).collect());
+            }
+            Some(names) => {
+                if names.len() != log.len() || names.iter().zip(&log).any(|(n, (k, _))| n != k) {
+                    return Err(format!(
+                        "it logged {:?}, but the first sample logged {names:?} (the same keys at every sample)",
+                        log.iter().map(|(k, _)| k.as_str()).collect::<Vec<_>>()
+                    ));
+                }
+            }
+        }
+        for (slot, (_, v)) in self.log.iter_mut().zip(log) {
+            *slot = v;
+        }
+        Ok(())
+    }
+}
+
+impl DiscreteController for PyController {
+    fn kind(&self) -> &str {
+        "python"
+    }
+
+    fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
+        Python::with_gil(|py| {
+            self.obs.borrow_mut(py).set(s);
+            let ret = self.callable.call1(py, (self.obs.clone_ref(py),)).map_err(|e| self.fail(s.t_s, e))?;
+            let cmd = read_command(ret.bind(py))
+                .and_then(|c| self.take_log(c.log).map(|_| c.output))
+                .map_err(|m| self.fail(s.t_s, ControllerError::new_err(m)))?;
+            if !cmd.valve_command.is_finite() {
+                let m = format!("it returned the valve command {}", cmd.valve_command);
+                return Err(self.fail(s.t_s, ControllerError::new_err(m)));
+            }
+            Ok(cmd)
+        })
+    }
+
+    fn log_names(&self) -> Vec<String> {
+        self.log_names.clone().unwrap_or_default()
+    }
+
+    fn log_values(&self, out: &mut [f64]) {
+        for (o, v) in out.iter_mut().zip(self.log) {
+            *o = v;
+        }
+    }
+}
+
+/// The Python exception for a failed run with a Python controller: the callback's own
+/// exception as the cause of a `ControllerError` naming the time, else the run's error.
+pub fn controller_failure(py: Python<'_>, e: Error, error: &Arc<Mutex<Option<PyErr>>>) -> PyErr {
+    let cause = error.lock().unwrap_or_else(|p| p.into_inner()).take();
+    match (cause, &e) {
+        (Some(c), Error::ControllerStopped { time_s, .. }) => {
+            if c.is_instance_of::<ControllerError>(py) {
+                return ControllerError::new_err(format!(
+                    "the Python controller at t = {time_s:.6} s: {}",
+                    c.value_bound(py)
+                ));
+            }
+            let err = ControllerError::new_err(format!(
+                "the Python controller raised {} at t = {time_s:.6} s",
+                c.value_bound(py).repr().map_or_else(|_| "an exception".into(), |r| r.to_string())
+            ));
+            err.set_cause(py, Some(c));
+            err
+        }
+        _ => py_err(e),
+    }
+}
+
+/// Run `sc` with the Python callable `controller` (the GIL held; signals checked every
+/// [`SIGNAL_CHECK_STEPS`] steps). With `out`, the outputs are written as `exoleg run` writes
+/// them, or not at all if the run fails.
+pub fn run_with_callback(
+    py: Python<'_>,
+    sc: &ResolvedScenario,
+    controller: PyObject,
+    out: Option<&str>,
+) -> PyResult<(String, ColumnSink)> {
+    let error = Arc::new(Mutex::new(None));
+    let ctrl = PyController::new(py, controller, error.clone())?;
+    let sim = Simulation::build(sc.model.clone(), ControllerSource::Discrete(Box::new(ctrl))).map_err(py_err)?;
+    let r = crate::stepwise::drive(py, sc, sim, out, |session| {
+        while !session.sim().done() {
+            session.step()?;
+            if session.sim().steps_taken() % SIGNAL_CHECK_STEPS == 0 && py.check_signals().is_err() {
+                return Err(Error::Interrupted);
+            }
+        }
+        Ok(())
+    });
+    r.map_err(|e| match e {
+        Error::Interrupted => py.check_signals().err().unwrap_or_else(|| py_err(Error::Interrupted)),
+        e => controller_failure(py, e, &error),
+    })
+}
+
+/// Steps between two checks for Ctrl-C while a Python controller runs.
+pub const SIGNAL_CHECK_STEPS: usize = 1000;
+
+/// A controller factory for a study: every run calls `callable` (with the GIL, one run after
+/// the other). A failing callback fails its run, recorded in `runs.jsonl` with the message.
+pub fn factory(callable: PyObject) -> Arc<ControllerFactory> {
+    let callable = Arc::new(callable);
+    Arc::new(move |_sc: &ResolvedScenario| -> exoleg::Result<Box<dyn DiscreteController>> {
+        Python::with_gil(|py| {
+            let err = Arc::new(Mutex::new(None));
+            PyController::new(py, (*callable).clone_ref(py), err)
+                .map(|c| Box::new(c) as Box<dyn DiscreteController>)
+                .map_err(|e| Error::Usage(e.to_string()))
+        })
+    })
+}
