@@ -68,8 +68,8 @@ impl<S: RecordSink> Session<S> {
         let metrics = SummaryBuilder::new(sc.metrics);
         let walking = layout.contact.then(|| {
             let data = sc.leg().and_then(|l| l.body.as_ref()).and_then(|b| match &b.targets {
-                crate::plant::BodyTargets::Walking(w) => Some(w.clone()),
-                crate::plant::BodyTargets::Pose(_) => None,
+                crate::human::BodyTargets::Walking(w) => Some(w.clone()),
+                crate::human::BodyTargets::Pose(_) => None,
             });
             WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data)
         });

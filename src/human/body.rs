@@ -17,6 +17,7 @@
 
 use crate::reference::WalkingSample;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// How the thigh is held.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -200,4 +201,38 @@ pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s:
             - wearer.ankle_moment_share * d.ankle_moment_nm,
         pelvis_force_n: [tether, support],
     }
+}
+
+/// What the body does on the carriage: the data it follows.
+#[derive(Debug, Clone)]
+pub enum BodyTargets {
+    /// Loaded walking along a gait cycle.
+    Walking(Arc<crate::reference::WalkingData>),
+    /// A constant pose (standing).
+    Pose(crate::reference::WalkingSample),
+}
+
+impl BodyTargets {
+    /// The targets at `t_s`.
+    pub fn at(&self, t_s: f64) -> crate::reference::WalkingSample {
+        match self {
+            BodyTargets::Walking(w) => w.at(t_s),
+            BodyTargets::Pose(p) => *p,
+        }
+    }
+}
+
+/// The body on the pelvis carriage, resolved.
+#[derive(Debug, Clone)]
+pub struct BodySetup {
+    /// `[hip]` settings.
+    pub hip: HipParams,
+    /// `[wearer]` settings.
+    pub wearer: WearerParams,
+    /// What the body follows.
+    pub targets: BodyTargets,
+    /// Mass the pelvis carries (kg).
+    pub pelvis_mass_kg: f64,
+    /// Initial ankle dorsiflexion (rad).
+    pub ankle_rad: f64,
 }

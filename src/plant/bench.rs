@@ -35,12 +35,13 @@ impl Default for BenchParams {
 /// The bench plant. The rig is infinitely stiff: the cylinder force does not move it.
 pub struct Bench {
     p: BenchParams,
+    dt_s: f64,
 }
 
 impl Bench {
-    /// A bench with the given prescribed motion.
-    pub fn new(p: BenchParams) -> Self {
-        Self { p }
+    /// A bench with the given prescribed motion, stepped by `dt_s` (s).
+    pub fn new(p: BenchParams, dt_s: f64) -> Self {
+        Self { p, dt_s }
     }
 }
 
@@ -57,7 +58,7 @@ impl Plant for Bench {
         }
     }
 
-    fn advance(&mut self, t_s: f64, dt_s: f64, _inputs: &PlantInputs) -> Result<f64> {
-        Ok(self.piston_at(t_s + dt_s).position_m - self.piston_at(t_s).position_m)
+    fn advance(&mut self, t_s: f64, _inputs: &PlantInputs) -> Result<f64> {
+        Ok(self.piston_at(t_s + self.dt_s).position_m - self.piston_at(t_s).position_m)
     }
 }

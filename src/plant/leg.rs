@@ -2,6 +2,7 @@
 
 use super::{PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs};
 use crate::error::{Error, Result};
+use crate::human::{BodyForces, BodyState};
 use crate::leg::{
     generalized_inertia_at, knee_forward_acceleration, moment_arm_at, moment_arm_slope_at, CarriageConfig, Leg,
     LegError, LegForces, LegSolverParams, LegSpec, Mount,
@@ -106,40 +107,6 @@ impl Default for GroundParams {
     }
 }
 
-/// What the body does on the carriage: the data it follows.
-#[derive(Debug, Clone)]
-pub enum BodyTargets {
-    /// Loaded walking along a gait cycle.
-    Walking(Arc<crate::reference::WalkingData>),
-    /// A constant pose (standing).
-    Pose(crate::reference::WalkingSample),
-}
-
-impl BodyTargets {
-    /// The targets at `t_s`.
-    pub fn at(&self, t_s: f64) -> crate::reference::WalkingSample {
-        match self {
-            BodyTargets::Walking(w) => w.at(t_s),
-            BodyTargets::Pose(p) => *p,
-        }
-    }
-}
-
-/// The body on the pelvis carriage, resolved.
-#[derive(Debug, Clone)]
-pub struct BodySetup {
-    /// `[hip]` settings.
-    pub hip: crate::human::HipParams,
-    /// `[wearer]` settings.
-    pub wearer: crate::human::WearerParams,
-    /// What the body follows.
-    pub targets: BodyTargets,
-    /// Mass the pelvis carries (kg).
-    pub pelvis_mass_kg: f64,
-    /// Initial ankle dorsiflexion (rad).
-    pub ankle_rad: f64,
-}
-
 impl Default for LegParams {
     fn default() -> Self {
         Self {
@@ -235,14 +202,15 @@ pub struct LegSetup {
     pub start: LegStart,
     /// Rapier solver iterations (TGS substeps) per step.
     pub solver_iterations: usize,
-    /// Cuff link name and cuff point in its frame (m).
-    pub cuff: (String, [f64; 3]),
+    /// The cuff point in the shank's frame (m), resolved from `human.cuff_link` and
+    /// `human.cuff_xyz` once.
+    pub cuff_point_m: [f64; 3],
     /// The run starts on its gait trajectory (knee angle and rate from the reference).
     pub start_on_trajectory: bool,
     /// The ground, when contact is on.
     pub ground: Option<crate::leg::GroundConfig>,
     /// The body on the pelvis carriage (`hip.mode = "carriage"`).
-    pub body: Option<Arc<BodySetup>>,
+    pub body: Option<Arc<crate::human::BodySetup>>,
     /// The reduced-coordinate model when `leg.engine = "reduced"`.
     pub reduced: Option<Arc<crate::leg::ReducedModel>>,
 }
@@ -302,22 +270,43 @@ pub struct LegPlant {
     max_gap_m: f64,
     /// dt/(2n) for Rapier's n TGS substeps (see [`PistonPredictor::velocity_lead_s`]).
     velocity_lead_s: f64,
-    /// The body on the carriage, and what it applied over the last step.
-    body: Option<(Arc<BodySetup>, crate::human::BodyForces)>,
+    /// What the body on the carriage applied over the last step (the loop computes it).
+    body: Option<BodyForces>,
     /// Ground height (m), with contact.
     ground_height_m: Option<f64>,
     /// Moment arm dL/dtheta (m/rad) at the present knee angle.
     arm_m: f64,
+    /// The trajectory a driven hip follows (the force reference's hip).
+    reference: crate::reference::ForceReference,
+    /// The fixed step (s), also in Rapier's integration parameters.
+    dt_s: f64,
+}
+
+/// The scenario key a leg build error belongs to: the start angle (given, or the gait's at
+/// t = 0), the step, or the URDF.
+fn build_error_key(setup: &LegSetup, e: &LegError) -> &'static str {
+    match e {
+        LegError::Unreachable { .. } if setup.start_on_trajectory => "reference.gait (the knee angle at t = 0)",
+        LegError::Unreachable { .. } => "leg.initial_knee_deg",
+        LegError::InvalidArgument(_) => "sim.dt_s",
+        _ if setup.ground.is_some() => "leg.urdf (its collision shapes with ground.enabled)",
+        _ => "leg.urdf",
+    }
 }
 
 impl LegPlant {
-    /// Build the plant from a resolved setup, time step `dt_s` (s). `source_name` names the
-    /// scenario in errors.
-    pub fn new(setup: &LegSetup, dt_s: f64, source_name: &str) -> Result<Self> {
+    /// Build the plant from a resolved setup, stepped by `dt_s` (s); `reference` drives the
+    /// hip when the setup's hip is driven. `source_name` names the scenario in errors.
+    pub fn new(
+        setup: &LegSetup,
+        reference: crate::reference::ForceReference,
+        dt_s: f64,
+        source_name: &str,
+    ) -> Result<Self> {
         let params = LegSolverParams { solver_iterations: setup.solver_iterations, ..Default::default() };
         let model = setup.model.clone();
         let (q0, qd0, hip) = (setup.start.knee_rad, setup.start.knee_rate_rad_s, setup.start.hip);
-        let bad = |e: crate::leg::LegError| Error::input(source_name, "leg.initial_knee_deg", e.to_string());
+        let bad = |e: LegError| Error::input(source_name, build_error_key(setup, &e), e.to_string());
         let mut leg = build_leg(setup, dt_s, params).map_err(bad)?;
         if qd0 != 0.0 {
             leg.set_knee_velocity(qd0).map_err(bad)?;
@@ -326,8 +315,7 @@ impl LegPlant {
         let knee = model.knee_joint();
         let knee_axis = DVec3::from(knee.axis).normalize();
         let shank_link = knee.child;
-        let cuff_point = cuff_point_from_model(&model, &setup.cuff.0, setup.cuff.1)
-            .map_err(|m| Error::input(source_name, "human.cuff_link", m))?;
+        let cuff_point = setup.cuff_point_m;
         let mass = setup.mass.clone();
         // xc_ddot = dL/dq * q_ddot + d(dL/dq)/dq * q_dot^2, with no cylinder force.
         let arm = moment_arm_at(&model, q0);
@@ -344,9 +332,11 @@ impl LegPlant {
             knee_axis,
             max_gap_m: 0.0,
             velocity_lead_s: dt_s / (2.0 * setup.solver_iterations as f64),
-            body: setup.body.clone().map(|b| (b, crate::human::BodyForces::default())),
+            body: setup.body.as_ref().map(|_| BodyForces::default()),
             ground_height_m: setup.ground.map(|g| g.height_m),
             arm_m: arm,
+            reference,
+            dt_s,
         })
     }
 
@@ -363,23 +353,6 @@ impl LegPlant {
     /// Largest loop-closure gap seen so far (m).
     pub fn max_loop_gap_m(&self) -> f64 {
         self.max_gap_m
-    }
-
-    /// The body's forces for the step from `t_s` (zero without the carriage); kept for the
-    /// record.
-    fn body_forces(&mut self, t_s: f64) -> crate::human::BodyForces {
-        let Some((b, last)) = &mut self.body else { return crate::human::BodyForces::default() };
-        let leg = &self.leg;
-        let (p, v) = leg.pelvis_state();
-        let state = crate::human::BodyState {
-            hip: (leg.hip_angle_rad(), leg.hip_velocity_rad_s()),
-            knee: (leg.knee_angle_rad(), leg.knee_velocity_rad_s()),
-            ankle: (leg.ankle_angle_rad(), leg.ankle_velocity_rad_s()),
-            pelvis: [p[0], p[1] - self.ground_height_m.unwrap_or(0.0)],
-            pelvis_rate: v,
-        };
-        *last = crate::human::body_forces(&b.hip, &b.wearer, &b.targets.at(t_s), &state);
-        *last
     }
 
     /// World force vector of magnitude `flexion_force_n` at the cuff, perpendicular to the
@@ -408,11 +381,25 @@ impl Plant for LegPlant {
         self.leg.knee_angle_rad()
     }
 
+    fn body_state(&self) -> Option<BodyState> {
+        self.body?;
+        let leg = &self.leg;
+        let (p, v) = leg.pelvis_state();
+        Some(BodyState {
+            hip: (leg.hip_angle_rad(), leg.hip_velocity_rad_s()),
+            knee: (leg.knee_angle_rad(), leg.knee_velocity_rad_s()),
+            ankle: (leg.ankle_angle_rad(), leg.ankle_velocity_rad_s()),
+            pelvis: [p[0], p[1] - self.ground_height_m.unwrap_or(0.0)],
+            pelvis_rate: v,
+        })
+    }
+
     fn knee_rate_rad_s(&self) -> f64 {
         self.leg.knee_velocity_rad_s()
     }
 
-    fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64> {
+    fn advance(&mut self, t_s: f64, inputs: &PlantInputs) -> Result<f64> {
+        let dt_s = self.dt_s;
         let q = self.leg.knee_angle_rad();
         // Interaction: positive w1 resists a lengthening surplus of the actuator, so it pushes
         // the knee the way that shortens the cylinder.
@@ -423,14 +410,17 @@ impl Plant for LegPlant {
             None
         };
         let m_eff = self.mass.at(q);
-        if let Some(h) = inputs.hip_target_rad {
+        if let Some(h) = self.reference.hip_at(t_s + dt_s).map(|h| h.value) {
             self.leg.set_hip_target(h).map_err(|e| Error::Diverged {
                 time_s: t_s,
                 state: format!("hip_angle_rad ({e})"),
                 value: h,
             })?;
         }
-        let body = self.body_forces(t_s);
+        let body = inputs.body.unwrap_or_default();
+        if let Some(last) = self.body.as_mut() {
+            *last = body;
+        }
         self.leg.step_with(&LegForces {
             actuator_force_n: inputs.cylinder_force_n,
             shank_force: cuff,
@@ -454,7 +444,7 @@ impl Plant for LegPlant {
     fn contact_row(&self) -> Option<ContactRow> {
         self.ground_height_m?;
         let c = self.leg.contact();
-        let body = self.body.as_ref().map(|b| b.1).unwrap_or_default();
+        let body = self.body.unwrap_or_default();
         let (p, _) = self.leg.pelvis_state();
         Some(ContactRow {
             ground_reaction_vertical_n: c.vertical_n,

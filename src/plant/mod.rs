@@ -162,8 +162,8 @@ pub struct PlantInputs {
     /// Human interaction force at the cuff (N), perpendicular to the shank, positive in the
     /// direction of knee flexion (`human.mode = "cuff"`; ignored by the bench).
     pub cuff_force_n: f64,
-    /// Hip flexion (rad) to reach at the end of the step, for a leg whose hip is driven.
-    pub hip_target_rad: Option<f64>,
+    /// The body's forces on the carriage over the step (from [`Plant::body_state`]).
+    pub body: Option<crate::human::BodyForces>,
     /// With [`CoupledMechanics`]: the knee angle (rad) and rate (rad/s) the loop integrated to
     /// the end of the step together with the hydraulics; the plant takes them as they are.
     pub knee_end: Option<(f64, f64)>,
@@ -220,9 +220,14 @@ pub trait Plant: Send {
     fn knee_rate_rad_s(&self) -> f64 {
         0.0
     }
-    /// Advance the mechanics from `t_s` to `t_s + dt_s` under a force constant over the step.
-    /// Returns the change of cylinder length over the step (m), measured geometrically.
-    fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64>;
+    /// Advance the mechanics over one step (its length was fixed when the plant was built) from
+    /// `t_s` under a force constant over the step. Returns the change of cylinder length over
+    /// the step (m), measured geometrically.
+    fn advance(&mut self, t_s: f64, inputs: &PlantInputs) -> Result<f64>;
+    /// The state the body on the carriage reads (None without the carriage).
+    fn body_state(&self) -> Option<crate::human::BodyState> {
+        None
+    }
     /// The leg columns of the record now (None for plants without a leg).
     fn leg_row(&self) -> Option<LegRow> {
         None

@@ -23,16 +23,16 @@ pub struct ReducedLegPlant {
     cuff_radius_m: f64,
     driven_hip: bool,
     hip_rad: f64,
+    dt_s: f64,
 }
 
 impl ReducedLegPlant {
-    /// Build the plant from a resolved setup and its reduced model; `reference` drives the hip
-    /// when the setup's hip is driven.
-    pub fn new(setup: &LegSetup, model: Arc<ReducedModel>, reference: ForceReference) -> Result<Self> {
+    /// Build the plant from a resolved setup and its reduced model, stepped by `dt_s` (s);
+    /// `reference` drives the hip when the setup's hip is driven.
+    pub fn new(setup: &LegSetup, model: Arc<ReducedModel>, reference: ForceReference, dt_s: f64) -> Result<Self> {
         let (q, qd) = (setup.start.knee_rad, setup.start.knee_rate_rad_s);
         let (l, arm) = model.cylinder(q);
-        let cuff = crate::plant::cuff_point_from_model(model.model(), &setup.cuff.0, setup.cuff.1)
-            .map_err(|m| Error::input("reduced engine", "human.cuff_link", m))?;
+        let cuff = setup.cuff_point_m;
         let driven_hip = setup.start.hip.is_some();
         let hip = setup.start.hip.unwrap_or_default();
         let qdd = model.acceleration(q, qd, (hip.value, hip.rate, hip.accel), 0.0);
@@ -45,6 +45,7 @@ impl ReducedLegPlant {
             cuff_radius_m: (cuff[0] * cuff[0] + cuff[2] * cuff[2]).sqrt(),
             driven_hip,
             hip_rad: hip.value,
+            dt_s,
             model,
         })
     }
@@ -123,7 +124,8 @@ impl Plant for ReducedLegPlant {
         self.qd
     }
 
-    fn advance(&mut self, t_s: f64, dt_s: f64, inputs: &PlantInputs) -> Result<f64> {
+    fn advance(&mut self, t_s: f64, inputs: &PlantInputs) -> Result<f64> {
+        let dt_s = self.dt_s;
         let force = inputs.cylinder_force_n;
         let q0 = self.q;
         (self.q, self.qd) = match inputs.knee_end {

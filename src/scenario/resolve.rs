@@ -7,11 +7,12 @@ use super::{ReferenceKind, Scenario, ScenarioFile};
 use crate::control::{ControllerKind, ControllerSetup, KneePd, NominalModel, SetupContext, ValveLimit};
 use crate::error::{Error, Result};
 use crate::human::HipMode;
+use crate::human::{BodySetup, BodyTargets};
 use crate::hydraulics::{Cylinder, FrictionParams};
 use crate::leg::LegSpec;
 use crate::leg::{foot_points_at, GroundConfig, LegOptions};
 use crate::metrics::{Band, MetricSettings};
-use crate::plant::{BodySetup, BodyTargets, LegSetup, LegStart, PlantKind, PlantSetup};
+use crate::plant::{LegSetup, LegStart, PlantKind, PlantSetup};
 use crate::reference::{
     ForceReference, GaitReference, KneeForceReference, RefSample, Sine, WalkingData, WalkingSample, BUILTIN_TRIALS,
 };
@@ -360,7 +361,7 @@ fn leg_setup(
 ) -> Result<LegSetup> {
     let f = &s.file;
     let (start, start_on_trajectory) = leg_start(s, &l.model, reference)?;
-    crate::plant::cuff_point_from_model(&l.model, &f.human.cuff_link, f.human.cuff_xyz)
+    let cuff_point_m = crate::plant::cuff_point_from_model(&l.model, &f.human.cuff_link, f.human.cuff_xyz)
         .map_err(|m| Error::input(&s.source_name, "human.cuff_link", m))?;
     let (ground, body) = body_setup(s, &l.model, mode, walking, &start)?;
     Ok(LegSetup {
@@ -368,7 +369,7 @@ fn leg_setup(
         mass: l.mass.clone(),
         start,
         solver_iterations: f.leg.solver_iterations,
-        cuff: (f.human.cuff_link.clone(), f.human.cuff_xyz),
+        cuff_point_m,
         start_on_trajectory,
         ground,
         body,

@@ -29,7 +29,7 @@
 //!     sink.row(record(t_k, x, s0, w1))
 //!     x   = integrate x over [t_k, t_k + dt] (euler | ode3 | rk4) with evaluate(tau, x).dx
 //!     F_cyl  = pred ? impulse-average force of the predictor : F_L - F_f   (or prescribed / 0)
-//!     stroke = plant.advance(t_k, F_cyl, cuff w1, hip target at t_k + dt)
+//!     stroke = plant.advance(t_k, F_cyl, cuff w1)     // a driven hip follows its trajectory
 //!     cylinder.end_step(stroke - predicted stroke)  // oil spring sees the geometric stroke,
 //!                                                   // then the hard stops
 //!     stop if a state is non-finite or the spool is past 1 m (Error::Diverged, naming the state)
@@ -141,10 +141,10 @@ pub struct Simulation {
 /// Build the plant of a model.
 fn build_plant(sc: &Model) -> Result<Box<dyn Plant>> {
     Ok(match &sc.plant {
-        PlantSetup::Bench(b) => Box::new(Bench::new(b.clone())),
+        PlantSetup::Bench(b) => Box::new(Bench::new(b.clone(), sc.dt_s)),
         PlantSetup::Leg(l) => match &l.reduced {
-            Some(r) => Box::new(ReducedLegPlant::new(l, r.clone(), sc.reference.clone())?),
-            None => Box::new(LegPlant::new(l, sc.dt_s, &sc.source_name)?),
+            Some(r) => Box::new(ReducedLegPlant::new(l, r.clone(), sc.reference.clone(), sc.dt_s)?),
+            None => Box::new(LegPlant::new(l, sc.reference.clone(), sc.dt_s, &sc.source_name)?),
         },
     })
 }
@@ -476,6 +476,14 @@ impl Simulation {
         }
     }
 
+    /// The body's forces on the carriage for the step from `t` (the human's other half, next
+    /// to w1): its force laws at the body's state and the data's sample.
+    fn body_forces(&self, t: f64) -> Option<crate::human::BodyForces> {
+        let b = self.sc.leg()?.body.as_ref()?;
+        let state = self.plant.body_state()?;
+        Some(crate::human::body_forces(&b.hip, &b.wearer, &b.targets.at(t), &state))
+    }
+
     /// Advance one step with the run's own controller; the row of the step's start goes to
     /// `sink`.
     pub fn step(&mut self, sink: &mut dyn RecordSink) -> Result<()> {
@@ -518,11 +526,11 @@ impl Simulation {
         let inputs = PlantInputs {
             cylinder_force_n,
             cuff_force_n: self.held.cuff_force_n,
-            hip_target_rad: self.sc.reference.hip_at(t + dt).map(|h| h.value),
+            body: self.body_forces(t),
             knee_end: (self.held.predictor.is_some() && self.plant.coupled().is_some())
                 .then_some((self.state.knee.angle_rad, self.state.knee.rate_rad_s)),
         };
-        let stroke = self.plant.advance(t, dt, &inputs)?;
+        let stroke = self.plant.advance(t, &inputs)?;
         let missed = self.hydraulic().then(|| {
             let seen = match &self.held.predictor {
                 Some(_) => self.state.piston.position_m - start.piston.position_m,

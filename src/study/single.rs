@@ -192,9 +192,7 @@ impl RecordSink for RunFiles {
 pub fn write_animation(sc: &ResolvedScenario, anim: &crate::output::animate::Animation, path: &Path) -> Result<()> {
     let Some(leg) = sc.model.leg() else { return Ok(()) };
     let f = &sc.file;
-    let cuff = (f.human.mode == crate::human::HumanMode::Cuff)
-        .then(|| crate::plant::cuff_point_from_model(&leg.model, &f.human.cuff_link, f.human.cuff_xyz).ok())
-        .flatten();
+    let cuff = (f.human.mode == crate::human::HumanMode::Cuff).then_some(leg.cuff_point_m);
     let ground_z_m = match (&leg.ground, &leg.body) {
         (Some(g), None) => Some(g.height_m),
         _ => None,
