@@ -24,7 +24,7 @@ fn steps(c: &mut Criterion) {
         g.throughput(Throughput::Elements(s.model.steps as u64));
         g.bench_function(*name, |b| b.iter(|| exoleg::run(&s.model, &mut NullSink).expect("run")));
     }
-    let urdf = exoleg::plant::BUILTIN_URDFS.iter().find(|(n, _)| *n == "builtin:exo_leg").expect("builtin leg").1;
+    let urdf = exoleg::leg::BUILTIN_URDFS.iter().find(|(n, _)| *n == "builtin:exo_leg").expect("builtin leg").1;
     let model = exoleg::leg::LegSpec::from_urdf_str(urdf, "knee").expect("builtin leg parses");
     g.throughput(Throughput::Elements(1000));
     g.bench_function("leg_rapier_step_only", |b| {

@@ -297,7 +297,7 @@ mod tests {
 
     #[test]
     fn moment_arm_slope_matches_a_central_difference() {
-        for (name, text) in crate::plant::BUILTIN_URDFS {
+        for (name, text) in crate::leg::BUILTIN_URDFS {
             let m = LegSpec::from_urdf_str(text, "knee").unwrap();
             for deg in [0.0f64, 17.0, 45.0, 80.0, 100.0] {
                 let q = deg.to_radians();

@@ -93,7 +93,7 @@ pub(super) fn insert_ground(
                 )))
             }
         };
-        let local = link_offset[c.link] * super::rapier::pose_of(c.origin_xyz, c.origin_rpy);
+        let local = link_offset[c.link] * super::pose::pose_of(c.origin_xyz, c.origin_rpy);
         let shape = match &c.shape {
             // Parry's cylinder runs along y, URDF's along z.
             CollisionShape::Cylinder { .. } => {

@@ -2,8 +2,12 @@
 //!
 //! * [`LegSpec`]: immutable model loaded from a URDF with two extension elements
 //!   (`<loop_closure>` and `<hydraulic_actuator>`), validated, with the planar loop geometry.
+//! * [`urdf`]: the URDF reader that builds a [`LegSpec`] ([`LegSpec::from_urdf_str`]), kept
+//!   apart from the model; [`pose`]: frames of URDF origins.
 //! * [`Leg`]: Rapier 0.36 (f64) simulation of that model (multibody tree + impulse-joint loop
-//!   closure).
+//!   closure), in [`rapier`]: built ([`rapier`]`::build`), stepped (`::step`), and its gait-lab
+//!   quantities (`::lab`).
+//! * [`ReducedModel`]: the same closed chain in its knee coordinate (the reduced engine).
 //! * [`geometry`]: Rapier-independent helpers (cylinder length, moment arm, gravity torque,
 //!   holding force, reduced generalized inertia) for tests and inverse dynamics.
 //!
@@ -16,6 +20,7 @@ pub mod geometry;
 pub mod ground;
 pub mod model;
 pub mod planar;
+pub mod pose;
 pub mod rapier;
 pub mod reduced;
 pub mod urdf;
@@ -32,5 +37,13 @@ pub use model::{
     ActuatorSpec, CollisionShape, CollisionSpec, JointKind, JointSpec, LegOptions, LegSpec, LinkSpec, LoopClosureSpec,
     LoopPose,
 };
-pub use rapier::{joint_origin_pose, CarriageConfig, HipCoupling, Leg, LegForces, LegSolverParams, Mount, Pose};
+pub use pose::{joint_origin_pose, pose_of, Pose};
+pub use rapier::{CarriageConfig, HipCoupling, Leg, LegForces, LegSolverParams, Mount};
+
+/// Built-in URDFs, embedded so a run needs no data path: `builtin:exo_leg` (75 kg, 1.75 m
+/// male) and `builtin:exo_leg_small` (60 kg, 1.60 m female, heavier cylinder).
+pub const BUILTIN_URDFS: [(&str, &str); 2] = [
+    ("builtin:exo_leg", include_str!("../../urdf/exo_leg.urdf")),
+    ("builtin:exo_leg_small", include_str!("../../urdf/exo_leg_small.urdf")),
+];
 pub use reduced::{HipMotion, ReducedModel};

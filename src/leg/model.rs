@@ -6,8 +6,6 @@
 //! +x, the sagittal plane is x-z and every movable joint of the loop rotates about the y axis
 //! (or slides in the x-z plane).
 
-use std::path::Path;
-
 use super::error::LegError;
 use super::planar::{Pose2, P2};
 
@@ -246,24 +244,6 @@ pub struct LegSpec {
 pub const DEFAULT_KNEE_RANGE_RAD: (f64, f64) = (0.0, 100.0 * std::f64::consts::PI / 180.0);
 
 impl LegSpec {
-    /// Load and validate a URDF file. `knee_joint` names the knee hinge (usually `"knee"`).
-    pub fn from_urdf_file(path: impl AsRef<Path>, knee_joint: &str) -> Result<Self, LegError> {
-        let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| LegError::Io { path: path.to_path_buf(), source })?;
-        Self::from_urdf_str(&text, knee_joint)
-    }
-
-    /// Parse and validate URDF text. `knee_joint` names the knee hinge (usually `"knee"`);
-    /// the ankle (if any) is locked. See [`super::urdf`] for what is checked.
-    pub fn from_urdf_str(text: &str, knee_joint: &str) -> Result<Self, LegError> {
-        super::urdf::parse(text, &LegOptions { knee_joint: knee_joint.into(), ..Default::default() })
-    }
-
-    /// Parse and validate URDF text with explicit options.
-    pub fn from_urdf_with(text: &str, options: &LegOptions) -> Result<Self, LegError> {
-        super::urdf::parse(text, options)
-    }
-
     /// The ankle joint, when it moves (`leg.ankle = "free"`).
     pub fn ankle_joint(&self) -> Option<&JointSpec> {
         self.ankle.map(|j| &self.joints[j])

@@ -14,6 +14,7 @@
 //!    range.
 
 use std::collections::HashMap;
+use std::path::Path;
 
 use rapier3d_f64::glamx::{DMat3, DQuat, DSymmetricEigen3, DVec3, EulerRot};
 
@@ -473,7 +474,7 @@ fn merged_mass_properties(m: &LegSpec, members: &[usize]) -> (f64, [[f64; 3]; 3]
             let pose = chain
                 .iter()
                 .rev()
-                .fold(super::rapier::Pose::IDENTITY, |p, &ji| p * super::joint_origin_pose(&m.joints[ji]));
+                .fold(super::pose::Pose::IDENTITY, |p, &ji| p * super::pose::joint_origin_pose(&m.joints[ji]));
             let link = &m.links[l];
             let r = DMat3::from_quat(pose.rotation);
             let c = pose * DVec3::from(link.com_m);
@@ -620,4 +621,25 @@ fn check_reachable(m: &LegSpec) -> Result<(), LegError> {
         m.loop_solution_checked(lo + (hi - lo) * k as f64 / n as f64)?;
     }
     Ok(())
+}
+
+/// The URDF constructors of the leg model.
+impl LegSpec {
+    /// Load and validate a URDF file. `knee_joint` names the knee hinge (usually `"knee"`).
+    pub fn from_urdf_file(path: impl AsRef<Path>, knee_joint: &str) -> Result<Self, LegError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|source| LegError::Io { path: path.to_path_buf(), source })?;
+        Self::from_urdf_str(&text, knee_joint)
+    }
+
+    /// Parse and validate URDF text. `knee_joint` names the knee hinge (usually `"knee"`);
+    /// the ankle (if any) is locked. See this module for what is checked.
+    pub fn from_urdf_str(text: &str, knee_joint: &str) -> Result<Self, LegError> {
+        parse(text, &LegOptions { knee_joint: knee_joint.into(), ..Default::default() })
+    }
+
+    /// Parse and validate URDF text with explicit options.
+    pub fn from_urdf_with(text: &str, options: &LegOptions) -> Result<Self, LegError> {
+        parse(text, options)
+    }
 }

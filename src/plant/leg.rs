@@ -12,13 +12,6 @@ use rapier3d_f64::glamx::DVec3;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
-/// Built-in URDFs, embedded so a run needs no data path: `builtin:exo_leg` (75 kg, 1.75 m
-/// male) and `builtin:exo_leg_small` (60 kg, 1.60 m female, heavier cylinder).
-pub const BUILTIN_URDFS: [(&str, &str); 2] = [
-    ("builtin:exo_leg", include_str!("../../urdf/exo_leg.urdf")),
-    ("builtin:exo_leg_small", include_str!("../../urdf/exo_leg_small.urdf")),
-];
-
 /// Leg parameters (scenario section `[leg]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

@@ -7,6 +7,7 @@
 
 use super::{CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs};
 use crate::error::{Error, Result};
+use crate::integrator::Integrator;
 use crate::leg::{moment_arm_slope_at, ReducedModel};
 use crate::record::LegRow;
 use crate::reference::{ForceReference, RefSample};
@@ -75,16 +76,9 @@ impl ReducedLegPlant {
     fn rk4(&self, t_s: f64, h: f64, force: f64, cuff_force_n: f64) -> (f64, f64) {
         let m = &self.model;
         let cuff_tau = self.cuff_torque(cuff_force_n, m.cylinder(self.q).1);
-        let acc = |t: f64, q: f64, qd: f64| self.knee_accel(t, q, qd, force, m.cylinder(q).1, cuff_tau);
-        let (q0, v0) = (self.q, self.qd);
-        let a1 = acc(t_s, q0, v0);
-        let (q2, v2) = (q0 + 0.5 * h * v0, v0 + 0.5 * h * a1);
-        let a2 = acc(t_s + 0.5 * h, q2, v2);
-        let (q3, v3) = (q0 + 0.5 * h * v2, v0 + 0.5 * h * a2);
-        let a3 = acc(t_s + 0.5 * h, q3, v3);
-        let (q4, v4) = (q0 + h * v3, v0 + h * a3);
-        let a4 = acc(t_s + h, q4, v4);
-        (q0 + h / 6.0 * (v0 + 2.0 * v2 + 2.0 * v3 + v4), v0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
+        let f = |t: f64, x: &[f64; 2]| [x[1], self.knee_accel(t, x[0], x[1], force, m.cylinder(x[0]).1, cuff_tau)];
+        let [q, qd] = Integrator::Rk4.step(t_s, h, &[self.q, self.qd], f);
+        (q, qd)
     }
 }
 

@@ -239,7 +239,7 @@ mod tests {
     fn data(trial: &str) -> WalkingData {
         let (cycle, stride) = GaitCycle::builtin(trial, 12).unwrap().unwrap();
         let gait = GaitReference { cycle, stride_s: stride, source: trial.into(), sha256: String::new() };
-        let text = crate::plant::BUILTIN_URDFS[0].1;
+        let text = crate::leg::BUILTIN_URDFS[0].1;
         let model = LegSpec::from_urdf_with(text, &LegOptions { ankle_free: true, ..Default::default() }).unwrap();
         WalkingData::new(gait, &model, 75.0, 10f64.to_radians()).unwrap()
     }

@@ -4,8 +4,9 @@
 
 use crate::control::PluginLibrary;
 use crate::error::{Error, Result};
+use crate::leg::BUILTIN_URDFS;
 use crate::leg::{LegOptions, LegSpec};
-use crate::plant::{MassTable, BUILTIN_URDFS};
+use crate::plant::MassTable;
 use crate::reference::{FourierSeries, GaitCycle, BUILTIN_TRIALS};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
