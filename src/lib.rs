@@ -1,16 +1,33 @@
 //! exoleg: a simulator for force control of hydraulic lower-limb exoskeletons.
 //!
 //! The blocks of the control diagram each have a module:
-//! [`reference`](mod@reference) -> [`control`] (ZNN, ARBFNN-FDO-ZNN, ERL-SMC, the knee PD) -> [`hydraulics`]
-//! (valve + cylinder) -> [`plant`] (bench or leg mechanics; [`leg`] is the URDF leg in Rapier)
-//! -> [`sensors`] -> back to the controller, with [`human`] interaction and [`disturbance`]s
-//! injected. [`scenario`] reads, validates and resolves scenario files; [`sim`] is the
-//! co-simulation loop; [`record`] carries its rows to [`metrics`] (computed online) and
-//! [`output`] (streamed CSV, JSON, plots); [`study`] builds comparisons, sweeps and the
+//! [`reference`](mod@reference) -> [`control`] (ZNN, ARBFNN-FDO-ZNN, ERL-SMC, dtznn, C plugins,
+//! the knee PD; the contract every outside controller implements) -> [`hydraulics`] (valve +
+//! cylinder) -> [`plant`] (bench or leg mechanics; [`leg`] is the URDF leg in Rapier or in
+//! reduced coordinates) -> [`sensors`] -> back to the controller, with [`human`] interaction
+//! and [`disturbance`]s injected. [`scenario`] reads, validates and resolves scenario files;
+//! [`sim`] is the co-simulation loop ([`integrator`] its fixed-step schemes); [`session`] runs
+//! it with the online [`metrics`] and the caller's [`record`] sink ([`output`]: streamed CSV,
+//! JSON, plots); [`study`] builds single runs with any controller, comparisons, sweeps and the
 //! robustness report on top; [`cli`] is the command line.
 //!
-//! Dependencies point one way: scenario -> blocks -> sim -> record -> metrics -> output ->
-//! study -> cli.
+//! Dependencies point one way, from the ground floor up (a module imports only from the
+//! lines above its own; `tests/it/architecture.rs` checks it, and that no two files import
+//! each other, directly or around a circle):
+//!
+//! ```text
+//! error, integrator
+//! record, hydraulics, sensors
+//! disturbance, leg
+//! reference
+//! human, control, metrics
+//! plant
+//! sim
+//! session, output
+//! scenario
+//! study
+//! cli
+//! ```
 
 pub mod cli;
 pub mod control;

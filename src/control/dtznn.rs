@@ -20,21 +20,12 @@
 //! fixed-time observer on the estimated q (its cubic gain capped at 300 1/s), for comparison.
 
 use super::discretize::{kalman_gain, SampledLti as SampledModel};
-use super::{ControlOutput, ControlStop, DiscreteController, Fdo, NominalModel, SampleInput, ValveLimit};
+use super::{
+    ControlOutput, ControlStop, DiscreteController, EstimatorKind, Fdo, NominalModel, SampleInput, ValveLimit,
+};
 use nalgebra::{DMatrix, DVector};
-use serde::{Deserialize, Serialize};
-use std::collections::VecDeque;
 
-/// Which disturbance estimator `dtznn` uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum EstimatorKind {
-    /// Kalman extended-state observer (the default).
-    #[default]
-    Eso,
-    /// A discrete fixed-time disturbance observer for D (comparison).
-    Fdo,
-}
+use std::collections::VecDeque;
 
 /// What the firmware knows of its sensors (for the Kalman measurement noise).
 #[derive(Debug, Clone, Copy, PartialEq)]

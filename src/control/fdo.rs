@@ -2,13 +2,24 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Which disturbance estimator `dtznn` uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EstimatorKind {
+    /// Kalman extended-state observer (the default).
+    #[default]
+    Eso,
+    /// A discrete fixed-time disturbance observer for D (comparison).
+    Fdo,
+}
+
 /// Observer parameters (`[controller.observer]`, or just `controller.observer = "eso"|"fdo"`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ObserverParams {
     /// `dtznn`'s disturbance estimator: `eso` (Kalman extended-state observer, default) or
     /// `fdo` (a discrete fixed-time observer, for comparison).
-    pub kind: super::EstimatorKind,
+    pub kind: EstimatorKind,
     /// FDO gain L (1/s): D_hat = L*psi(Xi) turns Xi (N/s) into N/s^2. Default 1 (the paper's). > 0.
     pub gain: f64,
     /// FDO exponent r in (0, 1). Default 1/3.
@@ -20,7 +31,7 @@ pub struct ObserverParams {
 
 impl Default for ObserverParams {
     fn default() -> Self {
-        Self { kind: super::EstimatorKind::Eso, gain: 1.0, exponent: 1.0 / 3.0, process_noise: [0.0, 1e-12, 1e2, 1e12] }
+        Self { kind: EstimatorKind::Eso, gain: 1.0, exponent: 1.0 / 3.0, process_noise: [0.0, 1e-12, 1e2, 1e12] }
     }
 }
 
@@ -39,7 +50,7 @@ pub(crate) mod observer_serde {
             f.write_str("\"eso\", \"fdo\" or a table of observer settings")
         }
         fn visit_str<E: de::Error>(self, v: &str) -> Result<ObserverParams, E> {
-            let kind = super::super::EstimatorKind::deserialize(de::value::StrDeserializer::<E>::new(v))?;
+            let kind = super::EstimatorKind::deserialize(de::value::StrDeserializer::<E>::new(v))?;
             Ok(ObserverParams { kind, ..Default::default() })
         }
         fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<ObserverParams, A::Error> {
