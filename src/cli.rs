@@ -325,6 +325,20 @@ fn cmd_firmware(json: Option<PathBuf>, sets: Vec<String>) -> Result<i32> {
     Ok(EXIT_OK)
 }
 
+/// On SIGINT, SIGTERM or SIGHUP (Ctrl-C, `kill`, Slurm and Kubernetes stopping a job):
+/// remove the temporary output folders being written, then exit with 128 + the signal (as a
+/// shell reports it). Nothing half-written is left, as when a run fails.
+pub fn remove_outputs_on_signals() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else { return };
+    std::thread::spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            output::remove_active();
+            std::process::exit(128 + sig);
+        }
+    });
+}
+
 /// Execute a parsed command line. Returns the process exit code on success.
 pub fn run(cli: Cli) -> Result<i32> {
     match cli.command {

@@ -3,6 +3,7 @@
 use clap::Parser;
 
 fn main() {
+    exoleg::cli::remove_outputs_on_signals();
     let cli = match exoleg::cli::Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) if e.use_stderr() => {

@@ -3,9 +3,12 @@
 //! run's largest force), the cuff force as an arrow, the ground and its reaction when contact
 //! is on, and the time and the force error written on each frame.
 //!
-//! Frames are taken from the recorded rows in real time (one every [`MIN_FRAME_S`], or more
-//! sparsely so that a run has at most [`MAX_FRAMES`]), at a whole number of GIF centiseconds,
-//! so the GIF plays at the simulation's speed. The same run gives the same bytes.
+//! Frames are taken from the recorded rows in real time: every k-th row, k chosen so the frame
+//! interval is at least [`MIN_FRAME_S`], at most [`MAX_FRAMES`] frames cover the run, and the
+//! interval is a whole number of GIF centiseconds to within 1 % (so the GIF plays at the
+//! simulation's speed, also for steps longer than a frame). A GIF delay is at most 655.35 s:
+//! runs over [`MAX_FRAMES`] times that (about 3.8 days) play faster than real time. The same
+//! run gives the same bytes.
 
 use crate::error::{Error, Result};
 use crate::leg::planar::P2;
@@ -36,21 +39,51 @@ struct Frame {
     grf_n: Option<[f64; 2]>,
 }
 
+/// Longest GIF frame delay (centiseconds; the format's 16 bits).
+pub const MAX_DELAY_CS: u16 = u16::MAX;
+
+/// The frames of a run: every `every` rows, shown `delay_cs` centiseconds each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FramePlan {
+    /// A frame every this many rows (steps).
+    pub every: usize,
+    /// Frames in the GIF.
+    pub frames: usize,
+    /// Each frame's delay (cs).
+    pub delay_cs: u16,
+}
+
+impl FramePlan {
+    /// The frames of a run of `steps` steps of `dt_s` (s): the fewest rows per frame that give
+    /// at least [`MIN_FRAME_S`] per frame and at most [`MAX_FRAMES`] frames, and then a
+    /// frame interval within 1 % of a whole number of centiseconds (the GIF's unit).
+    pub fn new(steps: usize, dt_s: f64) -> Self {
+        let duration = steps as f64 * dt_s;
+        let min_s = (duration / MAX_FRAMES as f64).max(MIN_FRAME_S);
+        let k0 = ((min_s / dt_s) * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+        let whole = |k: usize| {
+            let cs = k as f64 * dt_s * 100.0;
+            (cs - cs.round()).abs() <= 0.01 * cs
+        };
+        let every = (k0..=k0.saturating_mul(4)).find(|&k| whole(k)).unwrap_or(k0);
+        let cs = (every as f64 * dt_s * 100.0).round().clamp(1.0, MAX_DELAY_CS as f64);
+        let frames = (steps / every + 1).min(MAX_FRAMES);
+        Self { every, frames, delay_cs: cs as u16 }
+    }
+}
+
 /// Collects the frames of a run (a [`RecordSink`]).
 #[derive(Debug, Clone)]
 pub struct Animation {
-    interval_s: f64,
-    next_s: f64,
+    plan: FramePlan,
+    row: usize,
     frames: Vec<Frame>,
 }
 
 impl Animation {
-    /// Frames for a run of `duration_s` (s).
-    pub fn new(duration_s: f64) -> Self {
-        let raw = (duration_s / MAX_FRAMES as f64).max(MIN_FRAME_S);
-        // A whole number of centiseconds, the GIF's unit.
-        let interval_s = (raw * 100.0).ceil() / 100.0;
-        Self { interval_s, next_s: 0.0, frames: Vec::new() }
+    /// Frames for a run of `steps` steps of `dt_s` (s).
+    pub fn new(steps: usize, dt_s: f64) -> Self {
+        Self { plan: FramePlan::new(steps, dt_s), row: 0, frames: Vec::new() }
     }
 
     /// Frames taken so far.
@@ -58,9 +91,9 @@ impl Animation {
         self.frames.len()
     }
 
-    /// The frame interval (s).
-    pub fn interval_s(&self) -> f64 {
-        self.interval_s
+    /// The plan of the frames.
+    pub fn plan(&self) -> FramePlan {
+        self.plan
     }
 }
 
@@ -71,10 +104,11 @@ impl RecordSink for Animation {
 
     fn row(&mut self, r: &Row) -> Result<()> {
         let Some(l) = r.leg else { return Ok(()) };
-        if r.t_s + 1e-9 < self.next_s || self.frames.len() >= MAX_FRAMES {
+        let row = self.row;
+        self.row += 1;
+        if row % self.plan.every != 0 || self.frames.len() >= self.plan.frames {
             return Ok(());
         }
-        self.next_s += self.interval_s;
         let c = r.contact;
         self.frames.push(Frame {
             t_s: r.t_s,
@@ -108,7 +142,8 @@ pub struct Scene<'a> {
 pub fn write_gif(path: &Path, anim: &Animation, scene: &Scene) -> Result<()> {
     super::plot::ensure_font();
     let werr = |e: String| Error::Write { path: path.to_path_buf(), message: format!("animation: {e}") };
-    let delay_ms = (anim.interval_s * 1000.0).round() as u32;
+    // plotters takes milliseconds and stores centiseconds.
+    let delay_ms = u32::from(anim.plan.delay_cs) * 10;
     let root = BitMapBackend::gif(path, SIZE, delay_ms).map_err(|e| werr(e.to_string()))?.into_drawing_area();
     let f_max = anim.frames.iter().map(|f| f.cylinder_n.abs()).fold(1.0, f64::max);
     for f in &anim.frames {
@@ -198,4 +233,28 @@ fn draw_frame(root: &Area, f: &Frame, scene: &Scene, f_max: f64) -> std::result:
     let text = format!("t = {:.2} s   F_L - F_d = {:+.2} N", f.t_s, f.force_error_n);
     root.draw(&Text::new(text, (10, 10), ("sans-serif", 18).into_font().color(&BLACK))).map_err(e)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Real time for any step: the frame interval is rows x dt, a whole number of centiseconds
+    /// (to 1 %), at most 500 frames; the delay never wraps.
+    #[test]
+    fn frames_play_in_real_time() {
+        // 2 s at 1 ms: a frame every 40 ms, 51 frames of 4 cs.
+        assert_eq!(FramePlan::new(2000, 1e-3), FramePlan { every: 40, frames: 51, delay_cs: 4 });
+        // 60 s: 500 frames 12 cs apart.
+        assert_eq!(FramePlan::new(60_000, 1e-3), FramePlan { every: 120, frames: 500, delay_cs: 12 });
+        // Steps longer than a frame: every row, each shown for its own step.
+        assert_eq!(FramePlan::new(100, 0.05), FramePlan { every: 1, frames: 101, delay_cs: 5 });
+        // 45 ms steps: 4.5 cs is no GIF delay; two rows are 9 cs exactly.
+        assert_eq!(FramePlan::new(100, 0.045), FramePlan { every: 2, frames: 51, delay_cs: 9 });
+        // 0.25 ms steps (the gait scenarios), 5.5 s.
+        assert_eq!(FramePlan::new(22_000, 2.5e-4), FramePlan { every: 160, frames: 138, delay_cs: 4 });
+        // A week at 1 s steps: 500 frames, the delay capped at 655.35 s (faster than real time).
+        let week = FramePlan::new(604_800, 1.0);
+        assert_eq!((week.frames, week.delay_cs), (500, MAX_DELAY_CS));
+    }
 }

@@ -280,6 +280,8 @@ pub struct Scenario {
     pub source_name: String,
     /// Directory of the scenario file, for relative paths inside it (None for the embedded one).
     pub base_dir: Option<std::path::PathBuf>,
+    /// The scenario file itself (None for the embedded one and scenarios given as data).
+    pub path: Option<std::path::PathBuf>,
     /// The validated values.
     pub file: ScenarioFile,
 }
@@ -309,7 +311,7 @@ impl Scenario {
             }
         };
         let base = path.and_then(|p| p.parent()).map(|d| d.to_path_buf());
-        Self::from_table(name, table, sets).map(|s| Scenario { base_dir: base, ..s })
+        Self::from_table(name, table, sets).map(|s| Scenario { base_dir: base, path: path.map(Path::to_path_buf), ..s })
     }
 
     /// Parse scenario text (TOML) with a name for error messages, apply overrides, validate.
@@ -328,7 +330,7 @@ impl Scenario {
             Error::input(&source, if key == "." { "scenario".to_string() } else { key }, msg)
         })?;
         validate::validate(&source, &file)?;
-        Ok(Scenario { source_name: source, base_dir: None, file })
+        Ok(Scenario { source_name: source, base_dir: None, path: None, file })
     }
 
     /// A scenario given as JSON data (an object of sections, the Python package's dicts), with
@@ -371,7 +373,7 @@ impl Scenario {
             format!("{}{WITH_SET}", self.source_name)
         };
         let s = Self::from_table(name, table, &[])?;
-        Ok(Scenario { base_dir: self.base_dir.clone(), ..s })
+        Ok(Scenario { base_dir: self.base_dir.clone(), path: self.path.clone(), ..s })
     }
 
     /// Same scenario with overrides applied on top (used by `compare` and sweeps).
@@ -384,7 +386,7 @@ impl Scenario {
             _ => return Err(Error::input(&self.source_name, "scenario", "cannot re-serialise scenario")),
         };
         let s = Self::from_table(self.source_name.clone(), table, sets)?;
-        Ok(Scenario { base_dir: self.base_dir.clone(), ..s })
+        Ok(Scenario { base_dir: self.base_dir.clone(), path: self.path.clone(), ..s })
     }
 }
 

@@ -44,6 +44,17 @@ pub struct ResolvedScenario {
     pub inputs: Vec<InputRecord>,
     /// Things the user should know that do not stop the run (printed on stderr).
     pub warnings: Vec<String>,
+    /// The scenario file, when it came from one.
+    pub path: Option<std::path::PathBuf>,
+}
+
+impl ResolvedScenario {
+    /// Every file this run reads (the scenario file and the files it names): an output folder
+    /// must not hold any of them.
+    pub fn input_paths(&self) -> Vec<std::path::PathBuf> {
+        let files = self.inputs.iter().map(|i| std::path::PathBuf::from(&i.origin)).filter(|p| p.is_absolute());
+        self.path.iter().cloned().chain(files).collect()
+    }
 }
 
 /// Compare a recorded hash with the file's; a change is a warning, not an error.
@@ -581,6 +592,7 @@ impl Scenario {
             file: cx.file,
             inputs: cx.inputs,
             warnings: cx.warnings,
+            path: self.path.clone(),
         })
     }
 }

@@ -223,7 +223,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Merged> {
             std::fs::File::open(&p).map_err(|e| Error::input(p.display().to_string(), "runs.jsonl", e.to_string()))?;
         readers.push((p, std::io::BufReader::new(f).lines()));
     }
-    let dir = OutputDir::prepare(out, "--out")?;
+    let dir = OutputDir::prepare_with_inputs(out, "--out", dirs)?;
     let path = dir.path().join("runs.jsonl");
     let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
     let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
@@ -278,7 +278,8 @@ pub fn run_study_into(
 ) -> Result<StudyDone> {
     let res = crate::scenario::Resources::new();
     super::sweep::validate_plan(base, plan, &res, opts)?;
-    let dir = OutputDir::prepare(out, "--out")?;
+    let inputs = base.resolve(&res).map(|r| r.input_paths()).unwrap_or_else(|_| base.path.iter().cloned().collect());
+    let dir = OutputDir::prepare_with_inputs(out, "--out", &inputs)?;
     let path = dir.path().join("runs.jsonl");
     let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
     let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);

@@ -249,10 +249,10 @@ impl<'a> RunBuilder<'a> {
     /// Run and write the outputs into `out` as `exoleg run --out` does: into a temporary
     /// folder, renamed into place only when the run completed (nothing is half-written).
     pub fn write_to(self, out: &Path) -> Result<RunReport> {
-        let dir = crate::output::OutputDir::prepare(out, "--out")?;
+        let dir = crate::output::OutputDir::prepare_with_inputs(out, "--out", &self.sc.input_paths())?;
         let title = run_title(self.sc);
         let report = if self.animate && self.sc.model.leg().is_some() {
-            let mut anim = crate::output::animate::Animation::new(self.sc.model.steps as f64 * self.sc.model.dt_s);
+            let mut anim = crate::output::animate::Animation::new(self.sc.model.steps, self.sc.model.dt_s);
             let r = run_into_with(self.sc, self.source, dir.path(), &title, Some(&mut anim))?;
             write_animation(self.sc, &anim, &dir.path().join("leg_motion.gif"))?;
             r

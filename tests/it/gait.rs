@@ -79,17 +79,21 @@ fn degraded_interaction_and_disturbances_make_errors_worse_but_stay_stable() {
         f(&znn_step),
         f(&full_step)
     );
-    // Measured: knee 0.00892 vs 0.00502 deg (1.78x), force 0.9355 vs 0.1915 N (4.9x).
+    // Measured: knee 0.00979 vs 0.00522 deg (1.88x), force 1.0337 vs 0.1445 N (7.2x).
     assert!(k(&base) > 1.4 * k(&strong), "weaker coupling should move the knee more");
     assert!(f(&base) > 2.5 * f(&strong));
-    // Without an observer, disturbances show up in the force error, in proportion to their size.
-    assert!(f(&znn_paper) > f(&znn_base));
-    // Measured: 1.4697 vs 1.3949 N (+5.4 %): a 20,000 N/s^2 step adds ~D/gamma^2 = 0.5 N at most.
-    assert!(f(&znn_step) > 1.03 * f(&znn_base), "a 20,000 N/s^2 step adds ~D/gamma^2 = 0.5 N");
+    // The paper's disturbances on dx2/dt are tiny next to gait forces (about 60 N/s^2 against
+    // gamma^2 = 40,000 1/s^2: 1.5 mN of force error): they move plain ZNN's force RMS by less
+    // than 0.01 N. Measured: 1.46890 -> 1.46910 N (0.2 mN).
+    assert!((f(&znn_paper) - f(&znn_base)).abs() < 0.01, "{} vs {}", f(&znn_paper), f(&znn_base));
+    // A 20,000 N/s^2 step adds up to D/gamma^2 = 0.5 N without an observer. Measured: the RMS
+    // after the first stride rises by 0.0708 N (1.46890 -> 1.53972).
+    let added = f(&znn_step) - f(&znn_base);
+    assert!((0.03..0.2).contains(&added), "the step adds {added} N");
     assert!(k(&znn_step) > k(&znn_base));
     // The observer takes the same step out: its force error moves by far less.
-    // Measured: 0.0064 N against 0.075 N (0.086 of it).
-    assert!((f(&full_step) - f(&base)).abs() < 0.2 * (f(&znn_step) - f(&znn_base)));
+    // Measured: 0.0080 N against 0.0708 N (0.11 of it).
+    assert!((f(&full_step) - f(&base)).abs() < 0.3 * added);
     for s in [&strong, &base, &full_step, &znn_base, &znn_paper, &znn_step] {
         // Measured: knee RMS at most 0.0105 deg, force max at most 6 N.
         assert!(k(s) < 0.03 && s.max_abs_force_error_after_settle_n < 15.0, "stable run expected");
