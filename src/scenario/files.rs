@@ -61,17 +61,27 @@ fn file_sha256(path: &Path) -> std::result::Result<String, String> {
 /// file first (`base_dir`), then in the working directory. The error names the key and the
 /// places tried. The result is absolute, so a run records where its input really was.
 pub fn resolve_path(source_name: &str, key: &str, file: &str, base_dir: Option<&Path>) -> Result<PathBuf> {
+    if file.trim().is_empty() {
+        return Err(Error::input(source_name, key, "is empty: give a file's path"));
+    }
     let p = Path::new(file);
     let candidates: Vec<PathBuf> = if p.is_absolute() {
         vec![p.to_path_buf()]
     } else {
         base_dir.map(|d| d.join(p)).into_iter().chain(std::iter::once(p.to_path_buf())).collect()
     };
-    let found = candidates.iter().find(|c| c.is_file()).cloned().ok_or_else(|| {
-        let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
-        Error::input(source_name, key, format!("file not found (tried {})", tried.join(", ")))
-    })?;
-    Ok(std::fs::canonicalize(&found).unwrap_or(found))
+    for c in &candidates {
+        match std::fs::metadata(c) {
+            Ok(m) if m.is_file() => return Ok(std::fs::canonicalize(c).unwrap_or_else(|_| c.clone())),
+            Ok(m) => {
+                let what = if m.is_dir() { "a directory" } else { "not a regular file (a device, FIFO or socket)" };
+                return Err(Error::input(source_name, key, format!("{} is {what}: give a file", c.display())));
+            }
+            Err(_) => continue,
+        }
+    }
+    let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+    Err(Error::input(source_name, key, format!("file not found (tried {})", tried.join(", "))))
 }
 
 /// An input file's text with where it came from and its hash.

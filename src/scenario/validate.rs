@@ -1,6 +1,7 @@
 //! Validation of a deserialised scenario: finiteness, signs, ranges, consistency.
 
 use super::ScenarioFile;
+use crate::control::ControllerKind;
 use crate::disturbance::{Signal, Term};
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
@@ -214,6 +215,14 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
                 ct.kind.as_str()
             ),
         ));
+    }
+    if ct.kind == ControllerKind::Plugin {
+        ct.plugin.numbers().map_err(|(k, m)| c.fail(&k, m))?;
+        if ct.plugin.log.len() > crate::control::plugin::PLUGIN_LOG_LEN {
+            return Err(
+                c.fail("controller.plugin.log", format!("at most {} names", crate::control::plugin::PLUGIN_LOG_LEN))
+            );
+        }
     }
     c.non_negative("controller.resonator_hz", ct.resonator_hz)?;
     if ct.delay_samples.is_some_and(|d| d > 100_000) {

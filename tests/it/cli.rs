@@ -175,13 +175,11 @@ fn compare_prints_the_paper_table_and_writes_json() {
     // The default plant is the leg: case 1 measured 11.439 N (README: leg vs bench excess),
     // and the printed table carries our figure, not only the paper's.
     let first = cases[0]["max_abs_force_error_n"].as_f64().unwrap();
-    eprintln!("DBG first {first}");
     assert!((first - 11.439).abs() < 0.02, "{first}");
     assert!(out.contains(&format!("{first:.3}")), "{out}");
     for pair in cases.chunks(2) {
         let (z, s) =
             (pair[0]["max_abs_force_error_n"].as_f64().unwrap(), pair[1]["max_abs_force_error_n"].as_f64().unwrap());
-        eprintln!("DBG ratio {}", z/s);
         // Measured ratios 0.43-0.50.
         assert!(z < 0.6 * s, "ZNN {z} vs ERL-SMC {s}");
     }
