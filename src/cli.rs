@@ -191,6 +191,13 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bo
     if !quiet {
         print_summary(&sc, &report.summary, &out);
     }
+    if let Some(s) = report.summary.end_stops.filter(|s| !s.is_clear()) {
+        eprintln!(
+            "warning: the leg ran into its end stops: knee at its lower limit {:.3} s, upper limit {:.3} s, \
+             cylinder stroke ends {:.3} s, ankle limits {:.3} s; deepest {:.3} deg (summary.json: end_stops)",
+            s.knee_lower_s, s.knee_upper_s, s.stroke_end_s, s.ankle_s, s.max_penetration_deg
+        );
+    }
     for (channel, n) in &report.summary.sensor_clipped_readings {
         eprintln!("warning: sensors.{channel}: {n} readings clipped at the full scale; raise sensors.{channel}.range");
     }

@@ -176,6 +176,7 @@ impl<S: RecordSink> Session<S> {
         summary.engine = sc.leg().map(|l| if l.reduced.is_some() { "reduced" } else { "rapier" }.to_string());
         (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
         summary.sensor_clipped_readings = sim.sensor_clips().into_iter().map(|(k, n)| (k.to_string(), n)).collect();
+        summary.end_stops = sim.stop_report();
         let (n, last) = sim.controller_warnings();
         if n > 0 {
             summary.controller_warnings =

@@ -76,7 +76,7 @@ def gen(name, sex, body_m, stature, pivot, rod_end, barrel, rod, closed_len, str
     out += '  <link name="rod">\n' + inertial(rm, (0, 0, rl_ / 2), r_it, r_it, r_ia) + '  </link>\n'
     out += (f'  <joint name="knee" type="revolute">\n    <parent link="thigh"/>\n    <child link="shank"/>\n'
             f'    <origin xyz="0 0 {f(-t["L"])}" rpy="0 0 0"/>\n    <axis xyz="0 1 0"/>\n'
-            f'    <limit lower="0" upper="{f(math.radians(100))}" effort="300" velocity="10"/>\n  </joint>\n')
+            f'    <limit lower="{f(math.radians(-10))}" upper="{f(math.radians(100))}" effort="300" velocity="10"/>\n  </joint>\n')
     # ankle: a hinge about -y, so its coordinate is dorsiflexion (toes up). Locked unless the
     # scenario walks on the ground (leg.ankle = "free").
     out += (f'  <joint name="ankle" type="revolute">\n    <parent link="shank"/>\n    <child link="foot"/>\n'

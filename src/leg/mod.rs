@@ -23,6 +23,7 @@ pub mod planar;
 pub mod pose;
 pub mod rapier;
 pub mod reduced;
+pub mod stops;
 pub mod urdf;
 
 pub use error::LegError;
@@ -47,3 +48,4 @@ pub const BUILTIN_URDFS: [(&str, &str); 2] = [
     ("builtin:exo_leg_small", include_str!("../../urdf/exo_leg_small.urdf")),
 ];
 pub use reduced::{HipMotion, ReducedModel};
+pub use stops::{EndStops, StopReport, StopSource};

@@ -127,6 +127,10 @@ pub struct Summary {
     /// The leg's mechanics engine (`rapier` or `reduced`; absent on the bench).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub engine: Option<String>,
+    /// Time the leg spent at its end stops and the deepest penetration (leg runs): the knee's
+    /// URDF limits, the cylinder's stroke ends, the moving ankle's limits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_stops: Option<crate::leg::StopReport>,
     /// Samples a controller flagged with a warning (a C plugin's warning status), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub controller_warnings: Option<ControllerWarnings>,
@@ -452,6 +456,7 @@ impl SummaryBuilder {
             steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
             contact: None,
             controller_warnings: None,
+            end_stops: None,
             engine: None,
         }
     }

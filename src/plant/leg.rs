@@ -206,6 +206,8 @@ pub struct LegSetup {
     pub body: Option<Arc<crate::human::BodySetup>>,
     /// The reduced-coordinate model when `leg.engine = "reduced"`.
     pub reduced: Option<Arc<crate::leg::ReducedModel>>,
+    /// The end stops: the knee's limits, the stroke ends, the moving ankle's limits.
+    pub stops: crate::leg::EndStops,
 }
 
 /// The Rapier leg of a setup: welded, on a driven hip, or on the carriage, with the ground
@@ -273,6 +275,9 @@ pub struct LegPlant {
     reference: crate::reference::ForceReference,
     /// The fixed step (s), also in Rapier's integration parameters.
     dt_s: f64,
+    /// The end stops and what they did.
+    stops: crate::leg::EndStops,
+    report: crate::leg::StopReport,
 }
 
 /// The scenario key a leg build error belongs to: the start angle (given, or the gait's at
@@ -330,6 +335,8 @@ impl LegPlant {
             arm_m: arm,
             reference,
             dt_s,
+            stops: setup.stops,
+            report: crate::leg::StopReport::default(),
         })
     }
 
@@ -346,6 +353,21 @@ impl LegPlant {
     /// Largest loop-closure gap seen so far (m).
     pub fn max_loop_gap_m(&self) -> f64 {
         self.max_gap_m
+    }
+
+    /// The end stops' torques on the knee and the ankle (N m) over the coming step, from the
+    /// state now (the knee's inertia M(q) = m_eff(q) (dL/dq)^2 with `m_eff_kg` at `q`).
+    fn stop_torques(&self, q: f64, m_eff_kg: f64) -> (f64, f64) {
+        let dt = self.dt_s;
+        let inertia = m_eff_kg * self.arm_m * self.arm_m;
+        // Rapier's substeps move velocity then position: q' = q + qd dt + a dt^2 (n + 1) / (2 n).
+        let gain = 0.5 + self.velocity_lead_s / dt;
+        let knee = self.stops.knee.torque(q, self.leg.knee_velocity_rad_s(), inertia, dt, gain);
+        let ankle = self.stops.ankle.map_or(0.0, |a| {
+            let (qa, qda) = (self.leg.ankle_angle_rad(), self.leg.ankle_velocity_rad_s());
+            a.torque(qa, qda, self.stops.ankle_inertia_kg_m2, dt, gain)
+        });
+        (knee, ankle)
     }
 
     /// World force vector of magnitude `flexion_force_n` at the cuff, perpendicular to the
@@ -372,6 +394,10 @@ impl Plant for LegPlant {
 
     fn knee_rad(&self) -> f64 {
         self.leg.knee_angle_rad()
+    }
+
+    fn stop_report(&self) -> Option<crate::leg::StopReport> {
+        Some(self.report)
     }
 
     fn body_state(&self) -> Option<BodyState> {
@@ -414,14 +440,17 @@ impl Plant for LegPlant {
         if let Some(last) = self.body.as_mut() {
             *last = body;
         }
+        let (knee_stop, ankle_stop) = self.stop_torques(q, m_eff);
         self.leg.step_with(&LegForces {
             actuator_force_n: inputs.cylinder_force_n,
             shank_force: cuff,
             hip_torque_nm: body.hip_torque_nm,
-            knee_torque_nm: body.knee_torque_nm,
-            ankle_torque_nm: body.ankle_torque_nm,
+            knee_torque_nm: body.knee_torque_nm + knee_stop,
+            ankle_torque_nm: body.ankle_torque_nm + ankle_stop,
             pelvis_force_n: body.pelvis_force_n,
         });
+        let ankle = self.stops.ankle.map(|_| self.leg.ankle_angle_rad());
+        self.report.add(&self.stops, self.leg.knee_angle_rad(), ankle, dt_s);
         let dl = self.leg.cylinder_length_change_m();
         let q1 = self.leg.knee_angle_rad();
         self.arm_m = moment_arm_at(&self.model, q1);

@@ -224,6 +224,10 @@ pub trait Plant: Send {
     /// `t_s` under a force constant over the step. Returns the change of cylinder length over
     /// the step (m), measured geometrically.
     fn advance(&mut self, t_s: f64, inputs: &PlantInputs) -> Result<f64>;
+    /// What the end stops did so far (None for plants without a leg).
+    fn stop_report(&self) -> Option<crate::leg::StopReport> {
+        None
+    }
     /// The state the body on the carriage reads (None without the carriage).
     fn body_state(&self) -> Option<crate::human::BodyState> {
         None

@@ -25,6 +25,11 @@ pub struct ReducedLegPlant {
     driven_hip: bool,
     hip_rad: f64,
     dt_s: f64,
+    /// The end stops, their torque held over the coming step (N m, from the state at its
+    /// start, as on the Rapier engine), and what they did.
+    stops: crate::leg::EndStops,
+    stop_nm: f64,
+    report: crate::leg::StopReport,
 }
 
 impl ReducedLegPlant {
@@ -47,8 +52,20 @@ impl ReducedLegPlant {
             driven_hip,
             hip_rad: hip.value,
             dt_s,
+            stops: setup.stops,
+            stop_nm: 0.0,
+            report: crate::leg::StopReport::default(),
             model,
-        })
+        }
+        .with_stop_torque())
+    }
+
+    /// The end stops' torque over the coming step from the knee state now.
+    fn with_stop_torque(mut self) -> Self {
+        let arm = self.model.cylinder(self.q).1;
+        let inertia = self.model.effective_mass_kg(self.q) * arm * arm;
+        self.stop_nm = self.stops.knee.torque(self.q, self.qd, inertia, self.dt_s, 0.5);
+        self
     }
 
     fn hip_at(&self, t_s: f64) -> (f64, f64, f64) {
@@ -62,7 +79,7 @@ impl ReducedLegPlant {
     /// Knee acceleration (rad/s^2) at `t_s`, knee state, net cylinder force (N) and cuff
     /// torque (N m, flexion positive) with the moment arm `arm_m` (m/rad) at `q`.
     fn knee_accel(&self, t_s: f64, q: f64, qd: f64, force_n: f64, arm_m: f64, cuff_tau_nm: f64) -> f64 {
-        self.model.acceleration(q, qd, self.hip_at(t_s), force_n * arm_m + cuff_tau_nm)
+        self.model.acceleration(q, qd, self.hip_at(t_s), force_n * arm_m + cuff_tau_nm + self.stop_nm)
     }
 
     /// Cuff torque about the knee (N m) for the cuff force `cuff_force_n` (N; positive w1
@@ -114,6 +131,10 @@ impl Plant for ReducedLegPlant {
         self.q
     }
 
+    fn stop_report(&self) -> Option<crate::leg::StopReport> {
+        Some(self.report)
+    }
+
     fn knee_rate_rad_s(&self) -> f64 {
         self.qd
     }
@@ -132,6 +153,10 @@ impl Plant for ReducedLegPlant {
         let dl = l1 - self.piston.length_m();
         self.piston.record(l1, v, force, m.effective_mass_kg(q0), dt_s);
         self.hip_rad = self.hip_at(t_s + dt_s).0;
+        self.report.add(&self.stops, self.q, None, dt_s);
+        let arm = m.cylinder(self.q).1;
+        // Integrated exactly (or by RK4) over the step: q' = q + qd dt + a dt^2 / 2.
+        self.stop_nm = self.stops.knee.torque(self.q, self.qd, m.effective_mass_kg(self.q) * arm * arm, dt_s, 0.5);
         if !(self.q.is_finite() && self.qd.is_finite() && self.piston.length_m().is_finite()) {
             return Err(Error::Diverged { time_s: t_s + dt_s, state: "knee_angle_rad".into(), value: self.q });
         }

@@ -374,7 +374,7 @@ fn leg_setup(
     let (start, start_on_trajectory) = leg_start(s, &l.model, reference)?;
     let cuff_point_m = crate::plant::cuff_point_from_model(&l.model, &f.human.cuff_link, f.human.cuff_xyz)
         .map_err(|m| Error::input(&s.source_name, "human.cuff_link", m))?;
-    let (ground, body) = body_setup(s, &l.model, mode, walking, &start)?;
+    let (ground, body) = body_setup(s, &l.model, mode, walking, &start, reference)?;
     Ok(LegSetup {
         model: l.model.clone(),
         mass: l.mass.clone(),
@@ -385,6 +385,7 @@ fn leg_setup(
         ground,
         body,
         reduced: None,
+        stops: crate::leg::EndStops::of(&l.model),
     })
 }
 
@@ -419,6 +420,7 @@ fn body_setup(
     mode: HipMode,
     walking: Option<Arc<WalkingData>>,
     start: &LegStart,
+    reference: &ForceReference,
 ) -> Result<(Option<GroundConfig>, Option<Arc<BodySetup>>)> {
     let f = &s.file;
     let g = &f.ground;
@@ -433,7 +435,7 @@ fn body_setup(
     let height_m = match (g.height_m, &targets) {
         (Some(h), _) => h,
         (None, Some(_)) => 0.0,
-        (None, None) => lowest_sole_z(s, model, start)?,
+        (None, None) => lowest_sole_z(s, model, start, reference)?,
     };
     let belt_speed_m_s = g.belt_speed_m_s.unwrap_or(match &targets {
         Some(BodyTargets::Walking(w)) => w.belt_speed_m_s,
@@ -466,11 +468,20 @@ fn body_setup(
 
 /// Default ground height without the carriage: the lowest sole point (ankle at 0) at the
 /// start, or over the gait cycle when the hip is driven along it.
-fn lowest_sole_z(s: &Scenario, model: &LegSpec, start: &LegStart) -> Result<f64> {
+fn lowest_sole_z(s: &Scenario, model: &LegSpec, start: &LegStart, reference: &ForceReference) -> Result<f64> {
     let none = || Error::input(&s.source_name, "ground.enabled", "the URDF has no collision shapes to stand on");
     let z = |h: f64, k: f64| foot_points_at(model, h, k, 0.0).map(|p| p.lowest.z);
     let z0 = z(start.hip.map_or(0.0, |h| h.value), start.knee_rad).ok_or_else(none)?;
-    Ok(z0)
+    let Some(stride) = reference.stride_s().filter(|_| start.hip.is_some()) else { return Ok(z0) };
+    // Driven along a gait: the lowest the sole reaches over the cycle (200 samples).
+    let mut lowest = z0;
+    for i in 0..200 {
+        let t = stride * i as f64 / 200.0;
+        if let (Some(h), Some(k)) = (reference.hip_at(t), reference.knee_at(t)) {
+            lowest = lowest.min(z(h.value, k.value).unwrap_or(lowest));
+        }
+    }
+    Ok(lowest)
 }
 
 impl Ctx<'_> {

@@ -643,6 +643,11 @@ impl Simulation {
         Ok(n)
     }
 
+    /// What the leg's end stops did so far (leg runs).
+    pub fn stop_report(&self) -> Option<crate::leg::StopReport> {
+        self.plant.stop_report()
+    }
+
     /// Sensor readings that clipped at full scale, by channel (sampled mode).
     pub fn sensor_clips(&self) -> Vec<(&'static str, usize)> {
         match &self.control {

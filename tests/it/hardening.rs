@@ -447,7 +447,7 @@ fn stiff_two_chamber_steps_are_substepped_to_the_right_answer() {
         };
         let (fine, _) = settled("0.00001");
         let (coarse, summary) = settled("0.001");
-        // Measured: 2470.33 N and -1595.23 N at both steps (10 and 9 substeps at 1 ms); without
+        // Measured: 2470.33 N and -1595.23 N at both steps (9 and 9 substeps at 1 ms); without
         // substeps 1 ms gave 2385 N (and oscillated) and -1302..-1540 N.
         assert!((fine / target - 1.0).abs() < 0.01, "the case is the 95 % case: {fine} vs {target}");
         assert!((coarse - fine).abs() < 0.01 * fine.abs(), "1 ms {coarse} vs 10 us {fine}");

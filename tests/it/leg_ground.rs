@@ -53,7 +53,7 @@ fn standing_leg_carries_the_weight_and_the_lab_moment_is_the_knee_torque() {
         let c = leg.contact();
         let cylinder_extensor_nm = -f * moment_arm_at(&m, leg.knee_angle_rad());
         let moment_err = (leg.lab_knee_moment_nm() - cylinder_extensor_nm) / cylinder_extensor_nm;
-        // Measured: the ground carries the weight to 1e-15; penetration 0.21 / 0.19 mm; the
+        // Measured: the ground carries the weight to 5e-16; penetration 0.21 / 0.19 mm; the
         // lab moment (54.58 / 107.48 N m, extensor) is the cylinder's torque within 0.34 / 0.21 %
         // (the rod's and barrel's weight and the joints' damping are inside the lab's "knee").
         assert!(((c.vertical_n - weight) / weight).abs() < 1e-12, "{k_deg}: GRF {} vs weight {weight}", c.vertical_n);
@@ -77,7 +77,8 @@ fn belt_drags_the_stance_foot_backwards_and_friction_is_the_momentum_change() {
         let p1 = leg.momentum();
         let dpdt = (p1[0] - p0[0]) / 1e-3;
         if i >= 200 {
-            // Measured: within 2.3 N once the foot sticks (the friction force is 10-100 N then).
+            // Measured: within 2.8 N once the foot sticks (the friction force is then -13 to
+            // 114 N).
             worst = worst.max((dpdt - leg.contact().horizontal_n).abs());
             n += 1;
         }

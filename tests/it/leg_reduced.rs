@@ -89,9 +89,9 @@ fn default_scenario_rapier_converges_to_the_reduced_engine() {
     // figure): Rapier's coupling error is first order.
     assert!((r1 - r01).abs() < 5e-4 * r01, "reduced {r1} vs {r01}");
     assert!((p01 - r01).abs() < 0.06 * r01 && (p1 - r01).abs() > 3.0 * (p01 - r01).abs(), "rapier {p1} / {p01}");
-    // Rapier as the oracle: at 40 / 20 / 10 us, extrapolated to a zero step: 9.24582 N. The
+    // Rapier as the oracle: at 40 / 20 / 10 us, extrapolated to a zero step: 9.24581 N. The
     // reduced engine at its 1 ms is 0.013 % from it (the limit: 0.5 %; asserted at
-    // 0.04 %), converged (10 us: 9.245730 N) 1.0e-5 of it.
+    // 0.04 %), converged (10 us: 9.245730 N) 8.9e-6 of it.
     let oracle = extrapolate([4e-5, 2e-5, 1e-5].map(|dt| max_force_error("rapier", dt, short)));
     let r_conv = max_force_error("reduced", 1e-5, short);
     assert!((r1 - oracle).abs() < 4e-4 * oracle, "reduced at 1 ms {r1} vs Rapier at zero step {oracle}");

@@ -138,8 +138,12 @@ fn non_finite_absurd_and_reversed_values_name_the_element() {
             r#"<origin xyz="0 0 -4e5" rpy="0 0 0"/>"#,
             &["knee", "exceeds"],
         ),
-        (r#"lower="0" upper="1.74533""#, r#"lower="1.74533" upper="0""#, &["knee", "lower", "above upper"]),
-        (r#"lower="0" upper="1.74533""#, r#"lower="nan" upper="1.74533""#, &["knee", "limit lower"]),
+        (
+            r#"lower="-0.174533" upper="1.74533""#,
+            r#"lower="1.74533" upper="-0.174533""#,
+            &["knee", "lower", "above upper"],
+        ),
+        (r#"lower="-0.174533" upper="1.74533""#, r#"lower="nan" upper="1.74533""#, &["knee", "limit lower"]),
     ];
     for (from, to, needles) in cases {
         let e = load(&replaced(from, to)).unwrap_err().to_string();

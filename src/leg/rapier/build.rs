@@ -10,26 +10,22 @@ use rapier3d_f64::glamx::{DQuat, DVec3};
 use rapier3d_f64::math::Pose;
 use rapier3d_f64::math::Vector;
 use rapier3d_f64::prelude::{
-    GenericJoint, GenericJointBuilder, ImpulseJointHandle, IntegrationParameters, JointAxesMask, JointAxis,
-    MassProperties, Multibody, MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SpringCoefficients,
+    GenericJoint, GenericJointBuilder, ImpulseJointHandle, IntegrationParameters, JointAxesMask, MassProperties,
+    Multibody, MultibodyIndex, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SpringCoefficients,
 };
 
 /// URDF joint -> Rapier generic joint. The Rapier joint frame's X axis is aligned with the URDF
 /// axis, so the Rapier coordinate equals the URDF coordinate (same sign).
-fn to_generic(j: &JointSpec, with_limits: bool) -> GenericJoint {
+fn to_generic(j: &JointSpec) -> GenericJoint {
     let origin = pose_of(j.origin_xyz, j.origin_rpy);
     let axis = DVec3::from(j.axis);
     let align = Pose::from_rotation(DQuat::from_rotation_arc(DVec3::X, axis));
-    let (mask, free_axis) = match j.kind {
-        JointKind::Revolute | JointKind::Continuous => (JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX),
-        JointKind::Prismatic => (JointAxesMask::LOCKED_PRISMATIC_AXES, JointAxis::LinX),
-        JointKind::Fixed => (JointAxesMask::LOCKED_FIXED_AXES, JointAxis::AngX),
+    let mask = match j.kind {
+        JointKind::Revolute | JointKind::Continuous => JointAxesMask::LOCKED_REVOLUTE_AXES,
+        JointKind::Prismatic => JointAxesMask::LOCKED_PRISMATIC_AXES,
+        JointKind::Fixed => JointAxesMask::LOCKED_FIXED_AXES,
     };
-    let mut b = GenericJointBuilder::new(mask).local_frame1(origin * align).local_frame2(align).contacts_enabled(false);
-    if let (true, Some((lo, hi)), false) = (with_limits, j.limits, j.kind == JointKind::Fixed) {
-        b = b.limits(free_axis, [lo, hi]);
-    }
-    b.build()
+    GenericJointBuilder::new(mask).local_frame1(origin * align).local_frame2(align).contacts_enabled(false).build()
 }
 
 /// A Rapier world with the leg's gravity and solver settings.
@@ -224,14 +220,13 @@ fn insert_joints(
     model: &LegSpec,
     welds: &Welds,
     link_body: &[RigidBodyHandle],
-    with_limits: bool,
 ) -> Result<(), LegError> {
     for &ji in &model.topo_joints {
         let j = &model.joints[ji];
         if j.kind == JointKind::Fixed {
             continue;
         }
-        let mut gj = to_generic(j, with_limits && Some(ji) == model.ankle);
+        let mut gj = to_generic(j);
         let f1 = welds.offset[j.parent] * gj.local_frame1;
         gj.set_local_frame1(f1);
         world
@@ -410,10 +405,10 @@ impl Leg {
             }
             Mount::Carriage(c) => Some(insert_carriage(&mut world, link_body[model.root], &c)?),
         };
-        // The free ankle has no actuator: on the ground its URDF limits hold the foot. The
-        // knee and the rod keep no Rapier limits (the cylinder's stroke ends are the
-        // hydraulics' hard stops).
-        insert_joints(&mut world, model, &welds, &link_body, ground.is_some())?;
+        // No Rapier joint limits: the end stops (knee, stroke ends, the moving ankle) are the
+        // plant's, the same law on both engines (`leg::stops`; Rapier's limit constraints also
+        // fail on a multibody with a kinematic hip).
+        insert_joints(&mut world, model, &welds, &link_body)?;
         let (closure, anchor1, anchor2, rod_anchor_is_1) = insert_closure(&mut world, model, &welds, &link_body);
         let belt = match ground {
             Some(g) => Some(Belt {
