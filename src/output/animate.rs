@@ -106,7 +106,7 @@ impl RecordSink for Animation {
         let Some(l) = r.leg else { return Ok(()) };
         let row = self.row;
         self.row += 1;
-        if row % self.plan.every != 0 || self.frames.len() >= self.plan.frames {
+        if !row.is_multiple_of(self.plan.every) || self.frames.len() >= self.plan.frames {
             return Ok(());
         }
         let c = r.contact;
