@@ -9,6 +9,10 @@ use crate::error::Result;
 use crate::record::{Layout, RecordSink, Row};
 use serde::{Deserialize, Serialize};
 
+/// Most strides with figures of their own in `summary.json` (`strides`); later strides count
+/// in the run's figures only.
+pub const MAX_STRIDES: usize = 10_000;
+
 /// Tolerance (s) when comparing a row's time with a window boundary.
 const T_EPS: f64 = 1e-12;
 
@@ -146,6 +150,49 @@ pub struct ControllerWarnings {
     pub samples: usize,
     /// The last warning's message.
     pub last: String,
+}
+
+impl Summary {
+    /// Check figures read back from a file (a shard's `runs.jsonl`): every number finite, every
+    /// maximum, RMS, peak and time non-negative, every fraction within [0, 1]. The error names
+    /// the figure.
+    pub fn check_plausible(&self) -> std::result::Result<(), String> {
+        let non_negative = [
+            ("max_abs_force_error_n", self.max_abs_force_error_n),
+            ("force_convergence_band_n", self.force_convergence_band_n),
+            ("rms_force_error_n", self.rms_force_error_n),
+            ("settle_s", self.settle_s),
+            ("max_abs_force_error_after_settle_n", self.max_abs_force_error_after_settle_n),
+            ("rms_force_error_after_settle_n", self.rms_force_error_after_settle_n),
+            ("max_abs_valve_command", self.max_abs_valve_command),
+            ("peak_load_force_n", self.peak_load_force_n),
+            ("knee_rms_error_deg", self.knee_rms_error_deg.unwrap_or(0.0)),
+            ("knee_max_abs_error_deg", self.knee_max_abs_error_deg.unwrap_or(0.0)),
+            ("peak_cylinder_force_n", self.peak_cylinder_force_n),
+            ("peak_power_w", self.peak_power_w),
+            ("force_convergence_time_s", self.force_convergence_time_s.unwrap_or(0.0)),
+            ("loop_closure_max_gap_m", self.loop_closure_max_gap_m.unwrap_or(0.0)),
+        ];
+        for (name, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{name} = {v}: a maximum, RMS, peak or time is finite and >= 0"));
+            }
+        }
+        for (name, v) in [
+            ("valve_saturation_fraction", self.valve_saturation_fraction),
+            ("force_limit_fraction", self.force_limit_fraction),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(format!("{name} = {v}: a fraction is within [0, 1]"));
+            }
+        }
+        if let Some([a, b]) = self.knee_range_deg {
+            if !(a.is_finite() && b.is_finite() && a <= b) {
+                return Err(format!("knee_range_deg = [{a}, {b}]"));
+            }
+        }
+        Ok(())
+    }
 }
 
 fn one() -> usize {
@@ -406,8 +453,17 @@ impl SummaryBuilder {
 
     fn add_stride(&mut self, r: &Row) {
         let (Some(stride_s), Some(ke)) = (self.settings.stride_s, r.knee_error_deg()) else { return };
-        while r.t_s >= (self.stride + 1) as f64 * stride_s - T_EPS {
+        // Jump to about the row's stride, then settle the boundary exactly (two steps at most),
+        // so a run of any length with any stride costs no loop over the strides it skips.
+        let k = ((r.t_s + T_EPS) / stride_s).floor();
+        if k > self.stride as f64 + 1.0 {
+            self.stride = (k.min(MAX_STRIDES as f64) as usize).saturating_sub(1);
+        }
+        while self.stride < MAX_STRIDES && r.t_s >= (self.stride + 1) as f64 * stride_s - T_EPS {
             self.stride += 1;
+        }
+        if self.stride >= MAX_STRIDES {
+            return;
         }
         if self.strides.len() <= self.stride {
             self.strides.resize(self.stride + 1, StrideAcc::default());
@@ -464,7 +520,7 @@ impl SummaryBuilder {
     /// The complete strides (a partial last stride is left out).
     fn stride_figures(&self) -> Vec<StrideFigures> {
         let Some(stride) = self.settings.stride_s else { return Vec::new() };
-        let n = ((self.last_t + 1e-9) / stride).floor() as usize;
+        let n = (((self.last_t + 1e-9) / stride).floor() as usize).min(MAX_STRIDES);
         self.strides
             .iter()
             .take(n)

@@ -165,11 +165,13 @@ fn reference(c: &Check, f: &ScenarioFile) -> Result<()> {
             return Err(c.fail("reference.cadence_steps_per_min", "give reference.stride_s or the cadence, not both"));
         }
     }
+    // A human stride takes 0.5-2 s walking, 0.6 s sprinting; these bounds leave room for any
+    // gait a leg may be asked to do and refuse what no stride is.
     if let Some(v) = rf.stride_s {
-        c.positive("reference.stride_s", v)?;
+        c.range("reference.stride_s", v, 0.2, 20.0)?;
     }
     if let Some(v) = rf.cadence_steps_per_min {
-        c.positive("reference.cadence_steps_per_min", v)?;
+        c.range("reference.cadence_steps_per_min", v, 6.0, 600.0)?;
     }
     if !(1..=40).contains(&rf.harmonics) {
         return Err(c.fail("reference.harmonics", format!("must be 1..=40, got {}", rf.harmonics)));

@@ -18,8 +18,11 @@ use sha2::{Digest, Sha256};
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 
-/// The format tag of `shard.json`.
-pub const SHARD_FORMAT: &str = "exoleg-shard-1";
+/// The format tag of `shard.json` (2: the plan is recorded, so the merge checks every run's
+/// overrides).
+pub const SHARD_FORMAT: &str = "exoleg-shard-2";
+/// Longest line of a shard's `runs.jsonl` the merge reads (bytes).
+pub const MAX_LINE_BYTES: usize = 8 << 20;
 
 /// What kind of study a plan belongs to (what the merge writes besides the runs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -51,6 +54,8 @@ pub struct ShardMeta {
     pub source_name: String,
     /// The base scenario as run (the robustness report's criteria come from it).
     pub scenario: ScenarioFile,
+    /// The plan (every run's overrides follow from it and the scenario).
+    pub plan: Plan,
 }
 
 /// SHA-256 (hex) of a plan: the base scenario as run and every run's overrides, in order.
@@ -82,12 +87,22 @@ pub fn parse_shard(s: &str) -> Result<(usize, usize)> {
 }
 
 /// The expanded plan as JSON lines (`--plan`): `{"index": i, "sets": [...]}` per run.
+/// A reader closing the pipe (`--plan | head`) ends the plan quietly.
 pub fn write_plan(plan: &Plan, out: &mut dyn Write) -> Result<()> {
     for i in 0..plan.len() {
         let line = serde_json::json!({ "index": i, "sets": plan.sets(i) });
-        writeln!(out, "{line}").map_err(|e| Error::Write { path: "<stdout>".into(), message: e.to_string() })?;
+        match writeln!(out, "{line}") {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
+            Err(e) => return Err(Error::Write { path: "<stdout>".into(), message: e.to_string() }),
+        }
     }
-    Ok(())
+    match out.flush() {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(Error::Write { path: "<stdout>".into(), message: e.to_string() })
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Write the files a finished study has besides `runs.jsonl` (`aggregate.csv`, and for a
@@ -125,13 +140,28 @@ fn read_meta(dir: &Path) -> Result<ShardMeta> {
 /// Parse and check `shard.json` text (`name` for messages). The fuzz target's entry point.
 pub fn parse_meta(name: &str, text: &str) -> Result<ShardMeta> {
     let p = std::path::PathBuf::from(name);
-    let meta: ShardMeta = serde_json::from_str(text)
+    let v: serde_json::Value = serde_json::from_str(text)
         .map_err(|e| Error::input(p.display().to_string(), "shard.json", format!("not a shard: {e}")))?;
-    if meta.format != SHARD_FORMAT {
+    match v.get("format").and_then(|f| f.as_str()) {
+        Some(SHARD_FORMAT) => {}
+        Some(other) => {
+            let other: String = other.chars().take(40).collect();
+            return Err(Error::input(
+                p.display().to_string(),
+                "format",
+                format!("expected {SHARD_FORMAT}, got {other} (a shard of another exoleg version: run it again)"),
+            ));
+        }
+        None => return Err(Error::input(p.display().to_string(), "format", "missing: not a shard")),
+    }
+    let meta: ShardMeta = serde_json::from_value(v)
+        .map_err(|e| Error::input(p.display().to_string(), "shard.json", format!("not a shard: {e}")))?;
+    meta.plan.check().map_err(|m| Error::input(p.display().to_string(), "plan", m))?;
+    if meta.plan.len() != meta.runs {
         return Err(Error::input(
             p.display().to_string(),
-            "format",
-            format!("expected {SHARD_FORMAT}, got {}", meta.format),
+            "runs",
+            format!("{} runs, but the plan has {}", meta.runs, meta.plan.len()),
         ));
     }
     let max = super::sweep::MAX_RUNS;
@@ -155,14 +185,28 @@ pub fn fuzz_shard_json(text: &str) -> Result<()> {
     parse_meta("fuzz/shard.json", text).map(|_| ())
 }
 
-/// Check that the shard folders are the N shards of one plan, each once; returns their metas
-/// ordered by K.
-fn check_shards(dirs: &[PathBuf]) -> Result<Vec<ShardMeta>> {
-    let metas: Vec<ShardMeta> = dirs.iter().map(|d| read_meta(d)).collect::<Result<_>>()?;
-    let first = metas.first().ok_or_else(|| Error::input("merge", "SHARDS", "give the shard folders"))?;
+/// Check that the shard folders are the N shards of one plan, each once, and that the plan is
+/// the one its hash says; returns (folder, meta) ordered by K.
+fn check_shards(dirs: &[PathBuf]) -> Result<Vec<(PathBuf, ShardMeta)>> {
+    let first_dir = dirs.first().ok_or_else(|| Error::input("merge", "SHARDS", "give the shard folders"))?;
+    let first = read_meta(first_dir)?;
     let n = first.shard[1];
-    for (m, d) in metas.iter().zip(dirs) {
-        if m.plan_hash != first.plan_hash || m.shard[1] != n || m.runs != first.runs || m.study != first.study {
+    let base =
+        Scenario { source_name: first.source_name.clone(), base_dir: None, path: None, file: first.scenario.clone() };
+    if plan_hash(&base, &first.plan)? != first.plan_hash {
+        return Err(Error::input(first_dir.display().to_string(), "plan_hash", "does not match its plan and scenario"));
+    }
+    let mut seen: Vec<Option<usize>> = vec![None; n];
+    let mut out = Vec::with_capacity(n);
+    for (i, d) in dirs.iter().enumerate() {
+        let m = if i == 0 { first.clone() } else { read_meta(d)? };
+        if m.plan_hash != first.plan_hash
+            || m.shard[1] != n
+            || m.runs != first.runs
+            || m.study != first.study
+            || m.plan != first.plan
+            || m.scenario != first.scenario
+        {
             return Err(Error::input(
                 d.display().to_string(),
                 "shard.json",
@@ -174,28 +218,22 @@ fn check_shards(dirs: &[PathBuf]) -> Result<Vec<ShardMeta>> {
                 ),
             ));
         }
-    }
-    let mut seen = vec![None; n];
-    for (i, m) in metas.iter().enumerate() {
         let k = m.shard[0];
-        if k >= n {
-            return Err(Error::input(dirs[i].display().to_string(), "shard", format!("shard {k} of {n}")));
-        }
         if let Some(j) = seen[k] {
             return Err(Error::input(
-                dirs[i].display().to_string(),
+                d.display().to_string(),
                 "shard",
-                format!("shard {k}/{n} given twice (also {})", dirs[j as usize].display()),
+                format!("shard {k}/{n} given twice (also {})", dirs[j].display()),
             ));
         }
-        seen[k] = Some(i as u32);
+        seen[k] = Some(i);
+        out.push((d.clone(), m));
     }
     if let Some(k) = seen.iter().position(|s| s.is_none()) {
         return Err(Error::input("merge", "SHARDS", format!("shard {k}/{n} is missing")));
     }
-    let mut ordered: Vec<(usize, ShardMeta)> = metas.into_iter().enumerate().collect();
-    ordered.sort_by_key(|(_, m)| m.shard[0]);
-    Ok(ordered.into_iter().map(|(_, m)| m).collect())
+    out.sort_by_key(|(_, m)| m.shard[0]);
+    Ok(out)
 }
 
 /// What a merge produced.
@@ -209,45 +247,140 @@ pub struct Merged {
     pub aggregate: Aggregate,
 }
 
+/// Open a shard's `runs.jsonl`: a regular file (a device, FIFO or folder is refused before it
+/// is read).
+fn open_runs(dir: &Path) -> Result<(PathBuf, std::fs::File)> {
+    let p = dir.join("runs.jsonl");
+    let bad = |m: String| Error::input(p.display().to_string(), "runs.jsonl", m);
+    let meta = std::fs::metadata(&p).map_err(|e| bad(e.to_string()))?;
+    if !meta.is_file() {
+        return Err(bad("not a regular file".into()));
+    }
+    let f = std::fs::File::open(&p).map_err(|e| bad(e.to_string()))?;
+    Ok((p, f))
+}
+
+/// The next line of `r` (without its newline), at most [`MAX_LINE_BYTES`]; None at the end.
+fn bounded_line(r: &mut impl BufRead, buf: &mut Vec<u8>) -> std::io::Result<Option<()>> {
+    buf.clear();
+    let n = std::io::Read::take(&mut *r, MAX_LINE_BYTES as u64 + 1).read_until(b'\n', buf)?;
+    if n == 0 {
+        return Ok(None);
+    }
+    if buf.last() == Some(&b'\n') {
+        buf.pop();
+    } else if buf.len() > MAX_LINE_BYTES {
+        return Err(std::io::Error::other(format!("a line longer than {MAX_LINE_BYTES} bytes")));
+    }
+    Ok(Some(()))
+}
+
+/// Check one line of a shard against the plan: run `i`, its overrides, its fields exactly as
+/// exoleg writes them, plausible figures.
+fn check_line(text: &[u8], i: usize, plan: &Plan) -> std::result::Result<RunLine, String> {
+    let text = std::str::from_utf8(text).map_err(|_| "not UTF-8".to_string())?;
+    let line: RunLine = serde_json::from_str(text).map_err(|e| format!("not a run line: {e}"))?;
+    if line.index != i {
+        return Err(format!("found run {} in its place", line.index));
+    }
+    if line.sets != plan.sets(i) {
+        return Err(format!("its overrides {:?} are not the plan's {:?}", line.sets, plan.sets(i)));
+    }
+    let canonical = serde_json::to_string(&line).map_err(|e| e.to_string())?;
+    if canonical != text {
+        return Err("not as exoleg writes it (fields added, changed or reordered)".into());
+    }
+    if let Some(s) = &line.summary {
+        s.check_plausible()?;
+    }
+    let passed = line.error.is_none() && line.criteria.iter().all(|c| c.pass);
+    if line.passed != passed || line.summary.is_none() != line.error.is_some() {
+        return Err("its verdict does not follow from its figures and criteria".into());
+    }
+    Ok(line)
+}
+
+/// Pass 1 over one shard (run K, K + N, ...): every line checked, the figures aggregated;
+/// returns each line's length (newline included) and the SHA-256 of the shard's lines.
+fn scan_shard(dir: &Path, k: usize, n: usize, plan: &Plan, agg: &mut Aggregate) -> Result<(Vec<u64>, [u8; 32])> {
+    let (p, f) = open_runs(dir)?;
+    let mut r = std::io::BufReader::new(f);
+    let mut buf = Vec::new();
+    let mut lens = Vec::new();
+    let mut h = Sha256::new();
+    let runs = plan.len();
+    for i in (k..runs).step_by(n) {
+        let bad = |m: String| Error::input(p.display().to_string(), format!("run {i}"), m);
+        bounded_line(&mut r, &mut buf)
+            .map_err(|e| bad(e.to_string()))?
+            .ok_or_else(|| bad("missing: the shard ends early".into()))?;
+        agg.add(&check_line(&buf, i, plan).map_err(bad)?);
+        h.update(&buf);
+        lens.push(buf.len() as u64 + 1);
+    }
+    if bounded_line(&mut r, &mut buf)
+        .map_err(|e| Error::input(p.display().to_string(), "runs.jsonl", e.to_string()))?
+        .is_some()
+    {
+        return Err(Error::input(p.display().to_string(), "runs.jsonl", "more runs than the plan has"));
+    }
+    Ok((lens, h.finalize().into()))
+}
+
+/// Pass 2 over one shard: copy its lines to their places in `out` (offsets of run K, K + N, ...),
+/// checking they are the bytes pass 1 checked.
+fn copy_shard(dir: &Path, offsets: &[u64], digest: &[u8; 32], out: &std::fs::File, out_path: &Path) -> Result<()> {
+    use std::os::unix::fs::FileExt;
+    let (p, f) = open_runs(dir)?;
+    let mut r = std::io::BufReader::new(f);
+    let mut buf = Vec::new();
+    let mut h = Sha256::new();
+    let changed = || Error::input(p.display().to_string(), "runs.jsonl", "changed while it was being merged");
+    for &at in offsets {
+        bounded_line(&mut r, &mut buf).map_err(|_| changed())?.ok_or_else(changed)?;
+        h.update(&buf);
+        buf.push(b'\n');
+        out.write_all_at(&buf, at)
+            .map_err(|e| Error::Write { path: out_path.to_path_buf(), message: e.to_string() })?;
+    }
+    if <[u8; 32]>::from(h.finalize()) != *digest {
+        return Err(changed());
+    }
+    Ok(())
+}
+
 /// Merge shard folders into `out`: `runs.jsonl` in index order, `aggregate.csv` and the
-/// study's plots, byte for byte what the unsharded study writes.
+/// study's plots, byte for byte what the unsharded study writes. One shard is open at a time
+/// (any number of shards, whatever the open-file limit); every line is read with a size cap and
+/// checked against the plan (run index, overrides, fields as exoleg writes them, plausible
+/// figures) before anything is written; `out` is never one of the shards.
 pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Merged> {
-    let metas = check_shards(dirs)?;
-    let mut by_k: Vec<&PathBuf> = dirs.iter().collect();
-    by_k.sort_by_key(|d| read_meta(d).map(|m| m.shard[0]).unwrap_or(usize::MAX));
-    let n = metas[0].shard[1];
-    let mut readers = Vec::with_capacity(n);
-    for d in &by_k {
-        let p = d.join("runs.jsonl");
-        let f =
-            std::fs::File::open(&p).map_err(|e| Error::input(p.display().to_string(), "runs.jsonl", e.to_string()))?;
-        readers.push((p, std::io::BufReader::new(f).lines()));
+    let shards = check_shards(dirs)?;
+    let n = shards.len();
+    let plan = shards[0].1.plan.clone();
+    let mut agg = Aggregate::default();
+    let mut scanned = Vec::with_capacity(n);
+    for (k, (d, _)) in shards.iter().enumerate() {
+        scanned.push(scan_shard(d, k, n, &plan, &mut agg)?);
+    }
+    // Where each run's line goes: runs in index order, run i from shard i % n.
+    let mut offsets: Vec<Vec<u64>> = scanned.iter().map(|(l, _)| Vec::with_capacity(l.len())).collect();
+    let mut at = 0u64;
+    for i in 0..plan.len() {
+        offsets[i % n].push(at);
+        at += scanned[i % n].0[i / n];
     }
     let dir = OutputDir::prepare_with_inputs(out, "--out", dirs)?;
     let path = dir.path().join("runs.jsonl");
     let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
-    let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
-    let mut agg = Aggregate::default();
-    for i in 0..metas[0].runs {
-        let (p, lines) = &mut readers[i % n];
-        let bad = |m: String| Error::input(p.display().to_string(), format!("run {i}"), m);
-        let text =
-            lines.next().ok_or_else(|| bad("missing: the shard ends early".into()))?.map_err(|e| bad(e.to_string()))?;
-        let line: RunLine = serde_json::from_str(&text).map_err(|e| bad(format!("not a run line: {e}")))?;
-        if line.index != i {
-            return Err(bad(format!("found run {} in its place", line.index)));
-        }
-        agg.add(&line);
-        w.write_all(text.as_bytes()).and_then(|_| w.write_all(b"\n")).map_err(werr)?;
+    let f = std::fs::File::create(&path).map_err(werr)?;
+    f.set_len(at).map_err(werr)?;
+    for (k, (d, _)) in shards.iter().enumerate() {
+        copy_shard(d, &offsets[k], &scanned[k].1, &f, &path)?;
     }
-    for (p, lines) in &mut readers {
-        if lines.next().is_some() {
-            return Err(Error::input(p.display().to_string(), "runs.jsonl", "more runs than the plan has"));
-        }
-    }
-    w.flush().map_err(werr)?;
-    drop(w);
-    let meta = metas.into_iter().next().expect("checked: at least one shard");
+    f.sync_all().map_err(werr)?;
+    drop(f);
+    let meta = shards.into_iter().next().map(|(_, m)| m).ok_or_else(|| Error::input("merge", "SHARDS", "no shard"))?;
     let title = write_study_outputs(dir.path(), &meta.study, &meta.scenario, &meta.source_name, &agg)?;
     dir.commit()?;
     Ok(Merged { title, meta, aggregate: agg })
@@ -296,6 +429,7 @@ pub fn run_study_into(
             shard: [k, n],
             source_name: source_name.to_string(),
             scenario: base.file.clone(),
+            plan: plan.clone(),
         };
         write_shard_meta(dir.path(), &meta)?;
         format!("shard {k}/{n}: {} runs ({} failed)", agg.runs, agg.failed)

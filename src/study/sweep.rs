@@ -26,7 +26,8 @@ pub const MAX_JOBS: usize = 256;
 const CHUNK: usize = 256;
 
 /// A distribution for a Monte-Carlo parameter.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Dist {
     /// Uniform in [lo, hi].
     Uniform(f64, f64),
@@ -89,7 +90,8 @@ pub fn value_at(s: &Scenario, key: &str) -> Result<(f64, bool)> {
 }
 
 /// One randomly varied parameter of a Monte-Carlo plan.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Varied {
     /// Dotted key.
     pub key: String,
@@ -105,7 +107,8 @@ pub struct Varied {
 }
 
 /// The runs of a sweep, expanded lazily.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Plan {
     /// Full factorial, first axis varying slowest.
     Grid(Vec<(String, Vec<String>)>),
@@ -162,8 +165,34 @@ impl Plan {
     /// Number of runs.
     pub fn len(&self) -> usize {
         match self {
-            Plan::Grid(axes) => axes.iter().map(|(_, v)| v.len()).product(),
+            Plan::Grid(axes) => axes.iter().try_fold(1usize, |a, (_, v)| a.checked_mul(v.len())).unwrap_or(usize::MAX),
             Plan::MonteCarlo { n, .. } => *n,
+        }
+    }
+
+    /// Check a plan read from a file (a shard's `shard.json`): at most [`MAX_RUNS`] runs, no
+    /// empty grid axis, finite distributions.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        if self.len() > MAX_RUNS {
+            return Err(format!("more than {MAX_RUNS} runs"));
+        }
+        match self {
+            Plan::Grid(axes) if axes.iter().any(|(_, v)| v.is_empty()) => Err("an empty grid axis".into()),
+            Plan::MonteCarlo { vary, .. } => {
+                let finite = |d: &Dist| match d {
+                    Dist::Uniform(a, b) | Dist::Normal(a, b) => a.is_finite() && b.is_finite(),
+                    Dist::Pct(p) => p.is_finite(),
+                };
+                let ok = vary
+                    .iter()
+                    .all(|v| finite(&v.dist) && v.base.is_finite() && v.followers.iter().all(|f| f.1.is_finite()));
+                if ok {
+                    Ok(())
+                } else {
+                    Err("a distribution or base value is not finite".into())
+                }
+            }
+            Plan::Grid(_) => Ok(()),
         }
     }
 
