@@ -74,6 +74,8 @@ pub struct DtZnn {
     delayed: DVector<f64>,
     estimate: DVector<f64>,
     commands: VecDeque<f64>,
+    /// The d-step prediction in closed form (cost independent of the delay).
+    ahead: Ahead,
     v_prev: Option<f64>,
     xv_ref: f64,
     iterations: usize,
@@ -148,6 +150,7 @@ impl DtZnn {
         let k = (model.phi.transpose() * &cz - &cz * lambda) / cg;
         let fdo = (s.estimator == EstimatorKind::Fdo).then(|| (Fdo::new(super::ObserverParams::default()), 0.0));
         let commands = VecDeque::from(vec![0.0; s.delay_samples]);
+        let ahead = Ahead::new(&model, s.delay_samples);
         Ok(Self {
             model,
             n,
@@ -162,6 +165,7 @@ impl DtZnn {
             delayed: DVector::zeros(n),
             estimate: DVector::zeros(n),
             commands,
+            ahead,
             v_prev: None,
             xv_ref: 0.0,
             iterations,
@@ -184,6 +188,7 @@ impl DtZnn {
         // Before t = 0 the valve was held where it is: the commands in flight hold the spool.
         let hold = x[1] / c.k_s;
         self.commands.iter_mut().for_each(|u| *u = hold);
+        self.ahead.reset(&self.model, &self.commands);
         self.prior = Some(x);
     }
 
@@ -204,13 +209,69 @@ impl DtZnn {
             *z += self.s.period_s * d_hat;
             delayed[3] = d_hat;
         }
-        let h = self.s.period_s;
-        let mut x = delayed.clone();
-        for (j, u) in self.commands.iter().enumerate() {
-            x = self.model.step(&x, *u, v + slope * j as f64 * h, slope);
-        }
+        self.estimate = self.ahead.predict(&self.model, &delayed, v, slope, self.s.period_s);
         self.delayed = delayed;
-        self.estimate = x;
+    }
+}
+
+/// The state d samples ahead of the delayed estimate, with the d commands in flight and the
+/// piston velocity ramped: `Phi^d x + S_u + A (G0 v + G1 slope) + B G0 slope h`, where
+/// `S_u = sum_j Phi^(d-1-j) Gamma u_j` (oldest command first), `A = sum_m Phi^m` and
+/// `B = sum_m (d-1-m) Phi^m` (m < d). `S_u` is kept by the recurrence
+/// `S_u' = Phi S_u - Phi^d Gamma u_oldest + Gamma u_new` and recomputed exactly every d
+/// samples, so a sample costs the same for any delay (d up to 100,000).
+#[derive(Debug, Clone)]
+struct Ahead {
+    d: usize,
+    phi_d: DMatrix<f64>,
+    phi_d_gamma: DVector<f64>,
+    a: DMatrix<f64>,
+    b: DMatrix<f64>,
+    s_u: DVector<f64>,
+    since_exact: usize,
+}
+
+impl Ahead {
+    fn new(m: &SampledModel, d: usize) -> Self {
+        let n = m.phi.nrows();
+        let (mut a, mut b) = (DMatrix::zeros(n, n), DMatrix::zeros(n, n));
+        let mut p = DMatrix::<f64>::identity(n, n);
+        for k in 0..d {
+            a += &p;
+            b += &p * (d - 1 - k) as f64;
+            p = &m.phi * p;
+        }
+        let phi_d_gamma = &p * &m.gamma;
+        Self { d, phi_d: p, phi_d_gamma, a, b, s_u: DVector::zeros(n), since_exact: 0 }
+    }
+
+    /// `S_u` of the commands in flight, summed exactly.
+    fn reset(&mut self, m: &SampledModel, commands: &VecDeque<f64>) {
+        let mut s = DVector::zeros(m.phi.nrows());
+        for u in commands {
+            s = &m.phi * s + &m.gamma * *u;
+        }
+        self.s_u = s;
+        self.since_exact = 0;
+    }
+
+    /// The oldest command `old` left the queue and `new` entered it (`commands` is the queue now).
+    fn shift(&mut self, m: &SampledModel, old: f64, new: f64, commands: &VecDeque<f64>) {
+        self.since_exact += 1;
+        if self.since_exact >= self.d {
+            self.reset(m, commands);
+        } else {
+            self.s_u = &m.phi * &self.s_u - &self.phi_d_gamma * old + &m.gamma * new;
+        }
+    }
+
+    /// The state d samples after `x` (the delayed estimate) with velocity `v` ramped at `slope`.
+    fn predict(&self, m: &SampledModel, x: &DVector<f64>, v: f64, slope: f64, h: f64) -> DVector<f64> {
+        if self.d == 0 {
+            return x.clone();
+        }
+        let w = &m.g0 * v + &m.g1 * slope;
+        &self.phi_d * x + &self.s_u + &self.a * w + &self.b * (&m.g0 * (slope * h))
     }
 }
 
@@ -255,6 +316,7 @@ impl DiscreteController for DtZnn {
         let oldest = match self.commands.pop_front() {
             Some(old) => {
                 self.commands.push_back(u.valve_command);
+                self.ahead.shift(&self.model, old, u.valve_command, &self.commands);
                 old
             }
             None => u.valve_command,
@@ -295,5 +357,42 @@ impl DiscreteController for DtZnn {
             "phi": (0..self.n).map(|i| self.model.phi.row(i).iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>(),
             "gamma": v(&self.model.gamma),
         }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hydraulics::HydraulicParams;
+
+    /// The closed-form d-step prediction equals the step-by-step one, also after many shifts
+    /// of the command queue (the recurrence and its periodic exact reset).
+    #[test]
+    fn prediction_ahead_matches_stepping() {
+        let c = HydraulicParams::default().coefficients();
+        let (a, b, e) = continuous_model(&c, 0.0);
+        let m = SampledModel::new(&a, &b, &e, 1e-3);
+        let d = 37;
+        let mut q: VecDeque<f64> = (0..d).map(|j| 1e-4 * ((j as f64) * 0.7).sin()).collect();
+        let mut ahead = Ahead::new(&m, d);
+        ahead.reset(&m, &q);
+        let x0 = DVector::from_vec(vec![120.0, 2e-5, 300.0, -5.0]);
+        let (v, slope, h) = (0.02, -0.3, 1e-3);
+        let direct = |q: &VecDeque<f64>| {
+            let mut x = x0.clone();
+            for (j, u) in q.iter().enumerate() {
+                x = m.step(&x, *u, v + slope * j as f64 * h, slope);
+            }
+            x
+        };
+        let close = |a: &DVector<f64>, b: &DVector<f64>| (a - b).amax() <= 1e-9 * b.amax();
+        assert!(close(&ahead.predict(&m, &x0, v, slope, h), &direct(&q)));
+        for k in 0..100 {
+            let new = 1e-4 * (k as f64 * 0.3).cos();
+            let old = q.pop_front().unwrap();
+            q.push_back(new);
+            ahead.shift(&m, old, new, &q);
+            assert!(close(&ahead.predict(&m, &x0, v, slope, h), &direct(&q)), "after {} shifts", k + 1);
+        }
     }
 }
