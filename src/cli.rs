@@ -174,6 +174,14 @@ fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
     println!("outputs             {}", out.display());
 }
 
+/// The warnings of a study's base scenario, once (a file changed since a recorded run, ...);
+/// its errors surface when the study's runs are resolved.
+fn warn_base(base: &Scenario) {
+    if let Ok(r) = base.resolve(&Resources::new()) {
+        warn(&r.warnings);
+    }
+}
+
 fn warn(warnings: &[String]) {
     for w in warnings {
         eprintln!("warning: {w}");
@@ -224,6 +232,7 @@ fn cmd_sweep(
     common: SweepArgs,
 ) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.sets)?;
+    warn_base(&base);
     let plan = sweep::plan_from_args(&base, &grids, monte_carlo, &vary)?;
     run_study(&base, &base.source_name, &plan, shard::StudyKind::Sweep, out, run_outputs, &common)
 }
@@ -281,6 +290,7 @@ fn robustness_verdict(base: &crate::scenario::ScenarioFile, agg: &sweep::Aggrega
 /// `exoleg robustness`.
 fn cmd_robustness(scenario: PathBuf, percent: f64, samples: usize, out: PathBuf, common: SweepArgs) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.sets)?;
+    warn_base(&base);
     let (pinned, plan) = robustness::robustness_plan(&base, samples, percent)?;
     run_study(&pinned, &base.source_name, &plan, shard::StudyKind::Robustness { percent }, out, false, &common)
 }

@@ -31,6 +31,17 @@ pub enum HipMode {
     Carriage,
 }
 
+impl HipMode {
+    /// The name in scenario files.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            HipMode::Fixed => "fixed",
+            HipMode::Driven => "driven",
+            HipMode::Carriage => "carriage",
+        }
+    }
+}
+
 /// `[hip]`: the thigh's mount and, on the carriage, the body it carries.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

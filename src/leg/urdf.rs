@@ -48,6 +48,15 @@ pub fn parse(text: &str, options: &LegOptions) -> Result<LegSpec, LegError> {
     let opts = roxmltree::ParsingOptions { allow_dtd: false, nodes_limit: MAX_XML_NODES, ..Default::default() };
     let doc = roxmltree::Document::parse_with_options(text, opts).map_err(|e| LegError::Xml(e.to_string()))?;
     check_nesting(&doc)?;
+    // Count the elements on the parsed tree before urdf-rs builds its own (a 5 MB file of
+    // links is refused here, not after a second parse).
+    let count = |tag: &str| doc.root_element().children().filter(|n| n.has_tag_name(tag)).count();
+    let (nl, nj) = (count("link"), count("joint"));
+    if nl > MAX_URDF_LINKS || nj > MAX_URDF_LINKS {
+        return Err(LegError::InvalidArgument(format!(
+            "{nl} links and {nj} joints: a leg model has at most {MAX_URDF_LINKS} of each"
+        )));
+    }
     let robot_el = doc.root_element();
     if robot_el.tag_name().name() != "robot" {
         return Err(LegError::Missing { what: "<robot> root element".into() });

@@ -131,8 +131,8 @@ impl Resources {
         Self::default()
     }
 
-    /// The URDF text for `leg.urdf` (`builtin:...` or a path resolved by the caller).
-    pub fn urdf_text(&self, source_name: &str, urdf: &str, base_dir: Option<&Path>) -> Result<InputText> {
+    /// The URDF text `key` names (`builtin:...` or a path, looked up next to the scenario).
+    pub fn urdf_text(&self, source_name: &str, key: &str, urdf: &str, base_dir: Option<&Path>) -> Result<InputText> {
         if let Some((name, text)) = BUILTIN_URDFS.iter().find(|(n, _)| *n == urdf) {
             return Ok(InputText {
                 origin: name.to_string(),
@@ -140,7 +140,7 @@ impl Resources {
                 sha256: sha256_hex(text.as_bytes()),
             });
         }
-        let path = resolve_path(source_name, "leg.urdf", urdf, base_dir)?;
+        let path = resolve_path(source_name, key, urdf, base_dir)?;
         self.file_text(&path)
     }
 

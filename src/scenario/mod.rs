@@ -7,7 +7,7 @@
 mod files;
 mod overrides;
 mod resolve;
-mod validate;
+pub(crate) mod validate;
 
 pub use files::*;
 pub use resolve::*;
@@ -244,7 +244,7 @@ impl Default for ScenarioFile {
 /// A seed is a u64; TOML integers are i64: values above i64::MAX are read from and written as
 /// decimal strings.
 mod seed_serde {
-    use serde::{de, Deserialize, Deserializer, Serializer};
+    use serde::{de, Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(v: &u64, s: S) -> Result<S::Ok, S::Error> {
         match i64::try_from(*v) {
@@ -253,21 +253,35 @@ mod seed_serde {
         }
     }
 
-    #[derive(Deserialize)]
-    #[serde(untagged)]
-    enum Raw {
-        Int(i64),
-        Text(String),
+    struct SeedVisitor;
+
+    const EXPECTED: &str = "an integer in 0..=18446744073709551615";
+
+    impl de::Visitor<'_> for SeedVisitor {
+        type Value = u64;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str(EXPECTED)
+        }
+        fn visit_i64<E: de::Error>(self, i: i64) -> Result<u64, E> {
+            u64::try_from(i).map_err(|_| E::custom(format!("must be >= 0, got {i}")))
+        }
+        fn visit_u64<E: de::Error>(self, u: u64) -> Result<u64, E> {
+            Ok(u)
+        }
+        fn visit_f64<E: de::Error>(self, x: f64) -> Result<u64, E> {
+            Err(E::custom(format!("must be {EXPECTED}, got {}", crate::scenario::validate::num(x))))
+        }
+        fn visit_str<E: de::Error>(self, t: &str) -> Result<u64, E> {
+            let shown: String = t.chars().take(40).collect();
+            t.trim().parse::<u64>().map_err(|_| E::custom(format!("must be {EXPECTED}, got {shown:?}")))
+        }
+        fn visit_bool<E: de::Error>(self, b: bool) -> Result<u64, E> {
+            Err(E::custom(format!("must be {EXPECTED}, got {b}")))
+        }
     }
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
-        match Raw::deserialize(d)? {
-            Raw::Int(i) => u64::try_from(i).map_err(|_| de::Error::custom(format!("must be >= 0, got {i}"))),
-            Raw::Text(t) => t
-                .trim()
-                .parse::<u64>()
-                .map_err(|_| de::Error::custom(format!("must be an integer in 0..=18446744073709551615, got {t:?}"))),
-        }
+        d.deserialize_any(SeedVisitor)
     }
 }
 

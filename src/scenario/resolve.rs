@@ -110,7 +110,7 @@ impl Ctx<'_> {
         recorded: &Option<String>,
         options: &LegOptions,
     ) -> Result<(Arc<crate::scenario::files::LoadedLeg>, InputText)> {
-        let text = self.res.urdf_text(self.src(), urdf, self.s.base_dir.as_deref())?;
+        let text = self.res.urdf_text(self.src(), key, urdf, self.s.base_dir.as_deref())?;
         check_hash(key, &text, recorded, &mut self.warnings);
         let loaded = self.res.leg(&text, options).map_err(|e| {
             Error::input(self.src(), key, format!("{}: {e}", text.origin.trim_start_matches("builtin:")))
@@ -372,6 +372,18 @@ fn leg_setup(
 ) -> Result<LegSetup> {
     let f = &s.file;
     let (start, start_on_trajectory) = leg_start(s, &l.model, reference)?;
+    if f.ground.enabled {
+        if let Some(c) =
+            l.model.collisions().iter().find(|c| matches!(c.shape, crate::leg::CollisionShape::Mesh { .. }))
+        {
+            let link = &l.model.links()[c.link].name;
+            return Err(Error::input(
+                &s.source_name,
+                format!("leg.urdf (link '{link}' <collision>)"),
+                "a mesh: ground contact needs boxes, cylinders, spheres or capsules",
+            ));
+        }
+    }
     let cuff_point_m = crate::plant::cuff_point_from_model(&l.model, &f.human.cuff_link, f.human.cuff_xyz)
         .map_err(|m| Error::input(&s.source_name, "human.cuff_link", m))?;
     let (ground, body) = body_setup(s, &l.model, mode, walking, &start, reference)?;

@@ -33,26 +33,37 @@ struct Check<'a> {
     src: &'a str,
 }
 
+/// A number as a message shows it: plain in the everyday range, else in exponent form (no
+/// 309-digit 1e308).
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || (1e-4..1e15).contains(&a) || !v.is_finite() {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 impl Check<'_> {
     fn positive(&self, key: &str, v: f64) -> Result<()> {
         if v > 0.0 {
             Ok(())
         } else {
-            Err(Error::input(self.src, key, format!("must be > 0, got {v}")))
+            Err(Error::input(self.src, key, format!("must be > 0, got {}", num(v))))
         }
     }
     fn non_negative(&self, key: &str, v: f64) -> Result<()> {
         if v >= 0.0 {
             Ok(())
         } else {
-            Err(Error::input(self.src, key, format!("must be >= 0, got {v}")))
+            Err(Error::input(self.src, key, format!("must be >= 0, got {}", num(v))))
         }
     }
     fn range(&self, key: &str, v: f64, lo: f64, hi: f64) -> Result<()> {
         if (lo..=hi).contains(&v) {
             Ok(())
         } else {
-            Err(Error::input(self.src, key, format!("must be in {lo}..={hi}, got {v}")))
+            Err(Error::input(self.src, key, format!("must be in {}..={}, got {}", num(lo), num(hi), num(v))))
         }
     }
     fn fail(&self, key: &str, msg: impl Into<String>) -> Error {
@@ -227,6 +238,17 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
         }
     }
     c.non_negative("controller.resonator_hz", ct.resonator_hz)?;
+    if ct.resonator_hz > 0.0 && ct.sample_period_s > 0.0 && ct.resonator_hz >= 0.5 / ct.sample_period_s {
+        return Err(c.fail(
+            "controller.resonator_hz",
+            format!(
+                "{} Hz is at or above the Nyquist frequency of controller.sample_period_s = {} s ({} Hz): a sampled model cannot hold it",
+                num(ct.resonator_hz),
+                num(ct.sample_period_s),
+                num(0.5 / ct.sample_period_s)
+            ),
+        ));
+    }
     if ct.delay_samples.is_some_and(|d| d > 100_000) {
         return Err(c.fail("controller.delay_samples", "at most 100000 samples"));
     }
@@ -270,8 +292,17 @@ fn sensors_and_actuator(c: &Check, f: &ScenarioFile) -> Result<()> {
         if let Some(r) = ch.range {
             c.positive(&format!("{key}.range"), r)?;
         }
-        if ch.bits.is_some_and(|b| b > 52) {
-            return Err(c.fail(&format!("{key}.bits"), "must be at most 52 (f64 resolution)"));
+        if ch.bits.is_some_and(|b| b == 0 || b > 52) {
+            return Err(c.fail(
+                &format!("{key}.bits"),
+                "must be 1..=52 (leave it out for the preset's; sensors.preset = \"ideal\" quantises nothing)",
+            ));
+        }
+        if ch.range.is_some() && ch.bits.is_none() && f.sensors.preset.bits().is_none() {
+            return Err(c.fail(
+                &format!("{key}.range"),
+                format!("has no effect without quantisation: set {key}.bits or a quantising sensors.preset (\"adc16\", \"adc32\")"),
+            ));
         }
     }
     for (key, ch) in
@@ -347,9 +378,10 @@ fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
 /// make a body (the carriage needs the ground and a gait or pose to follow).
 fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
     let h = &f.hip;
-    c.positive("hip.subject_mass_kg", h.subject_mass_kg)?;
+    // People weigh 2-650 kg; what the pelvis carries is the subject less one leg.
+    c.range("hip.subject_mass_kg", h.subject_mass_kg, 2.0, 650.0)?;
     if let Some(m) = h.body_mass_kg {
-        c.positive("hip.body_mass_kg", m)?;
+        c.range("hip.body_mass_kg", m, 1.0, 650.0)?;
     }
     for (k, v) in [
         ("hip.stiffness_nm_per_rad", h.stiffness_nm_per_rad),
@@ -398,8 +430,24 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
 fn carriage_combinations(c: &Check, f: &ScenarioFile) -> Result<()> {
     use crate::human::HipMode;
     let mode = f.hip.mode;
+    if let (Some(d), Some(m)) = (f.reference.drive_hip, mode) {
+        let same = m == if d { HipMode::Driven } else { HipMode::Fixed };
+        if !same {
+            return Err(c.fail(
+                "reference.drive_hip",
+                format!(
+                    "= {d} contradicts hip.mode = \"{}\": give hip.mode alone (reference.drive_hip is deprecated)",
+                    m.as_str()
+                ),
+            ));
+        }
+    }
     if f.ground.enabled && f.plant.kind != PlantKind::Leg {
         return Err(c.fail("ground.enabled", "ground contact needs plant.kind = \"leg\""));
+    }
+    // Beyond 100 m from the hip the coordinates lose the precision the contact needs.
+    if let Some(h) = f.ground.height_m {
+        c.range("ground.height_m", h, -100.0, 100.0)?;
     }
     if let (Some(h), false) = (f.ground.height_m, f.hip.mode == Some(HipMode::Carriage)) {
         if h >= 0.0 {
