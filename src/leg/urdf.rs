@@ -502,8 +502,12 @@ fn merged_mass_properties(m: &LegSpec, members: &[usize]) -> (f64, [[f64; 3]; 3]
     (mass, inertia.to_cols_array_2d())
 }
 
+/// The ankle joint's default name (`leg.ankle_joint`).
+pub const DEFAULT_ANKLE_JOINT: &str = "ankle";
+
 /// The ankle: locked (a fixed joint for everything downstream) unless `ankle_free`; a free
 /// ankle must be a hinge from the knee's child (the shank, or a link welded to it) to the foot.
+/// A URDF without a joint of the default name has no ankle (the foot welded to the shank).
 fn ankle(joints: &mut [JointSpec], o: &LegOptions) -> Result<Option<usize>, LegError> {
     let found = joints.iter().position(|j| j.name == o.ankle_joint);
     match (found, o.ankle_free) {
@@ -514,9 +518,10 @@ fn ankle(joints: &mut [JointSpec], o: &LegOptions) -> Result<Option<usize>, LegE
             Ok(None)
         }
         (None, false) => Ok(None),
-        (None, true) => {
-            Err(LegError::UnknownJoint { element: "leg.ankle = \"free\"".into(), joint: o.ankle_joint.clone() })
-        }
+        // No ankle: the foot is welded to the shank and stands on the ground as it is. A name
+        // the user gave that is not in the URDF is a mistake.
+        (None, true) if o.ankle_joint == DEFAULT_ANKLE_JOINT => Ok(None),
+        (None, true) => Err(LegError::UnknownJoint { element: "leg.ankle_joint".into(), joint: o.ankle_joint.clone() }),
         (Some(a), true) => {
             expect_kind(&joints[a], "ankle (leg.ankle = \"free\")", JointKind::is_hinge, "revolute or continuous")?;
             Ok(Some(a))
