@@ -411,9 +411,26 @@ pub mod fuzz {
     use super::{Resources, Scenario};
     use crate::error::{Error, Result};
 
-    /// A scenario file: parse, validate, resolve (leg, gait and cascade included).
+    /// Steps a fuzzed scenario runs after it resolves (the blocks built, the first samples
+    /// taken: sensors, dtznn, plugins, contact, the carriage).
+    pub const FUZZ_STEPS: usize = 20;
+
+    /// A scenario file: parse, validate, resolve (leg, gait and cascade included), then build
+    /// the run and take its first [`FUZZ_STEPS`] steps. A simulation that diverges or stops is
+    /// a result, not a failure; only a panic is.
     pub fn scenario(text: &str) -> Result<()> {
-        Scenario::from_toml_str("fuzz.toml", text, &[])?.resolve(&Resources::new()).map(|_| ())
+        let sc = Scenario::from_toml_str("fuzz.toml", text, &[])?.resolve(&Resources::new())?;
+        let mut sim = match crate::sim::Simulation::new(sc.model.clone()) {
+            Ok(s) => s,
+            Err(e @ Error::Input { .. }) => return Err(e),
+            Err(_) => return Ok(()),
+        };
+        for _ in 0..FUZZ_STEPS.min(sc.model.steps) {
+            if sim.step(&mut crate::record::NullSink).is_err() {
+                break;
+            }
+        }
+        Ok(())
     }
 
     /// URDF text through the leg loader with knee joint `knee`.

@@ -358,6 +358,13 @@ fn leg_start(s: &Scenario, model: &LegSpec, reference: &ForceReference) -> Resul
             .loop_solution_checked(q0)
             .map_err(|e| Error::input(&s.source_name, "leg.initial_knee_deg", e.to_string()))?;
     }
+    if on_trajectory {
+        let key = match reference {
+            ForceReference::Pose { .. } => "reference.knee_deg",
+            _ => "reference.gait (the knee angle at t = 0)",
+        };
+        model.loop_solution_checked(q0).map_err(|e| Error::input(&s.source_name, key, e.to_string()))?;
+    }
     let hip: Option<RefSample> = reference.hip_at(0.0);
     Ok((LegStart { knee_rad: q0, knee_rate_rad_s: qd0, hip }, on_trajectory))
 }
