@@ -293,6 +293,8 @@ impl DiscreteController for PyController {
 pub fn controller_failure(py: Python<'_>, e: Error, error: &Arc<Mutex<Option<PyErr>>>) -> PyErr {
     let cause = error.lock().unwrap_or_else(|p| p.into_inner()).take();
     match (cause, &e) {
+        // KeyboardInterrupt, SystemExit: not the controller's failure; they go on as they are.
+        (Some(c), _) if !c.is_instance_of::<pyo3::exceptions::PyException>(py) => c,
         (Some(c), Error::ControllerStopped { time_s, .. }) => {
             if c.is_instance_of::<ControllerError>(py) {
                 return ControllerError::new_err(format!(

@@ -53,6 +53,13 @@ pub(crate) fn py_err(e: Error) -> PyErr {
     }
 }
 
+/// Run `f`, turning a Rust panic into an `ExoError` (a panic must never reach Python as
+/// `PanicException`, which `except Exception` does not catch).
+pub(crate) fn guard<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f))
+        .unwrap_or_else(|p| Err(ExoError::new_err(format!("internal error (a panic): {}", sweep::panic_message(&p)))))
+}
+
 /// The scenario: a path, TOML text, a JSON object (a Python dict), or the embedded default,
 /// with overrides as a JSON array of `[key, value]` pairs.
 pub(crate) fn load(
@@ -186,7 +193,7 @@ fn run<'py>(
         .map_err(py_err)?;
     let scenario_toml = toml::to_string(&sc.file).map_err(|e| ExoError::new_err(e.to_string()))?;
     let (summary, cols) = match controller {
-        Some(c) => controller::run_with_callback(py, &sc, c, out.as_deref())?,
+        Some(c) => guard(|| controller::run_with_callback(py, &sc, c, out.as_deref()))?,
         None => {
             let cancel = Arc::new(AtomicBool::new(false));
             interruptible(py, &cancel, || stepwise::run_model(&sc, out.as_deref(), Some(cancel.clone())))?

@@ -188,41 +188,15 @@ impl Simulation {
     /// the first sample.
     #[pyo3(signature = (seed=None))]
     fn reset(&mut self, py: Python<'_>, seed: Option<u64>) -> PyResult<Py<Obs>> {
-        self.run = None;
-        self.log_names = None;
-        if let Some(seed) = seed {
-            let mut m: Model = (*self.sc.model).clone();
-            m.seed = seed;
-            self.sc.model = Arc::new(m);
-            self.sc.file.seed = seed;
-        }
-        let sim = CoreSimulation::build(self.sc.model.clone(), ControllerSource::External).map_err(py_err)?;
-        self.run = Some(start(&self.sc, sim, self.out.as_deref()).map_err(py_err)?);
-        self.read(py)
+        crate::guard(|| self.reset_inner(py, seed))
     }
 
     /// Hold `command` (the valve command, or a dict with `valve_command` and logged numbers)
     /// for one sample period; returns the readings of the next sample (the last ones again
     /// once the run is done).
     fn step(&mut self, py: Python<'_>, command: &Bound<'_, PyAny>) -> PyResult<Py<Obs>> {
-        let cmd = read_command(command).map_err(crate::ControllerError::new_err)?;
-        let log = self.log_values(cmd.log)?;
-        let st = self.started()?;
-        if st.session.sim().done() {
-            return Err(ExoError::new_err("the run is done: call finish() (or reset())"));
-        }
-        st.session.sim_mut().set_log(&log);
-        st.session.hold(cmd.output).map_err(py_err)?;
-        st.session.advance().map_err(py_err)?;
-        while !st.session.sim().done() && !st.session.sim().is_sample_step() {
-            st.session.advance().map_err(py_err)?;
-        }
-        if st.session.sim().done() {
-            return Ok(self.obs.clone_ref(py));
-        }
-        self.read(py)
+        crate::guard(|| self.step_inner(py, command))
     }
-
     /// True when the run has taken all its steps.
     #[getter]
     fn done(&self) -> bool {
@@ -260,5 +234,40 @@ impl Simulation {
         let (summary, cols) = finish(&self.sc, st).map_err(py_err)?;
         let toml = toml::to_string(&self.sc.file).map_err(|e| ExoError::new_err(e.to_string()))?;
         Ok((summary, cols.into_dict(py)?, toml))
+    }
+}
+
+impl Simulation {
+    fn reset_inner(&mut self, py: Python<'_>, seed: Option<u64>) -> PyResult<Py<Obs>> {
+        self.run = None;
+        self.log_names = None;
+        if let Some(seed) = seed {
+            let mut m: Model = (*self.sc.model).clone();
+            m.seed = seed;
+            self.sc.model = Arc::new(m);
+            self.sc.file.seed = seed;
+        }
+        let sim = CoreSimulation::build(self.sc.model.clone(), ControllerSource::External).map_err(py_err)?;
+        self.run = Some(start(&self.sc, sim, self.out.as_deref()).map_err(py_err)?);
+        self.read(py)
+    }
+
+    fn step_inner(&mut self, py: Python<'_>, command: &Bound<'_, PyAny>) -> PyResult<Py<Obs>> {
+        let cmd = read_command(command).map_err(crate::ControllerError::new_err)?;
+        let log = self.log_values(cmd.log)?;
+        let st = self.started()?;
+        if st.session.sim().done() {
+            return Err(ExoError::new_err("the run is done: call finish() (or reset())"));
+        }
+        st.session.sim_mut().set_log(&log);
+        st.session.hold(cmd.output).map_err(py_err)?;
+        st.session.advance().map_err(py_err)?;
+        while !st.session.sim().done() && !st.session.sim().is_sample_step() {
+            st.session.advance().map_err(py_err)?;
+        }
+        if st.session.sim().done() {
+            return Ok(self.obs.clone_ref(py));
+        }
+        self.read(py)
     }
 }
