@@ -211,15 +211,12 @@ impl OutputDir {
             }
             Err(_) => {}
         }
+        // `out/.` and `out/..` name no folder of their own (Rust's paths drop a trailing `.`).
+        let raw = out.to_string_lossy();
+        let raw = raw.trim_end_matches('/');
+        let dots = raw == "." || raw == ".." || raw.ends_with("/.") || raw.ends_with("/..");
         let name = match out.file_name() {
-            Some(n)
-                if !matches!(
-                    out.components().next_back(),
-                    Some(std::path::Component::CurDir | std::path::Component::ParentDir)
-                ) =>
-            {
-                n.to_string_lossy().to_string()
-            }
+            Some(n) if !dots => n.to_string_lossy().to_string(),
             _ => return Err(bad("has no folder name (`.`, `..` or a root): name the folder")),
         };
         let parent = match out.parent() {

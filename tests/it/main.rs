@@ -19,6 +19,7 @@ mod leg_reduced;
 mod leg_statics;
 mod leg_urdf_errors;
 mod observer;
+mod output_safety;
 mod paper_tables;
 mod sampled;
 mod shard;
