@@ -33,6 +33,7 @@ pub mod cli;
 pub mod control;
 pub mod disturbance;
 pub mod error;
+pub mod fmu;
 pub mod human;
 pub mod hydraulics;
 pub mod integrator;

@@ -3,7 +3,7 @@
 //! `valve_command` and logged channels (numbers, the same keys at every sample).
 
 use crate::{py_err, ColumnSink, ControllerError};
-use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput, MAX_LOGGED};
+use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput, MAX_LOGGED, READINGS};
 use exoleg::scenario::ResolvedScenario;
 use exoleg::sim::{ControllerSource, Simulation};
 use exoleg::study::sweep::ControllerFactory;
@@ -76,49 +76,29 @@ pub struct Obs {
 /// Raw A/D counts of the five channels (None = not quantised).
 pub type Counts = (Option<i64>, Option<i64>, Option<i64>, Option<i64>, Option<i64>);
 
-/// The reading names of [`Obs`] in the order of [`Obs::array`] (the Gymnasium observation).
-pub const OBS_FIELDS: [&str; 17] = [
-    "t_s",
-    "period_s",
-    "force_n",
-    "force_rate_n_per_s",
-    "spool_m",
-    "piston_m",
-    "piston_velocity_m_s",
-    "piston_accel_m_s2",
-    "knee_rad",
-    "knee_rate_rad_s",
-    "ref_force_n",
-    "ref_force_rate_n_per_s",
-    "ref_force_accel_n_per_s2",
-    "next_ref_force_n",
-    "next_ref_force_rate_n_per_s",
-    "next_ref_force_accel_n_per_s2",
-    "valve_command_limit",
-];
-
 impl Obs {
-    /// Fill from one sample.
+    /// Fill from one sample (the fields in the order of `exoleg::control::READINGS`).
     pub fn set(&mut self, s: &SampleInput) {
         let c = s.counts.0;
+        let [t_s, period_s, force_n, force_rate_n_per_s, spool_m, piston_m, piston_velocity_m_s, piston_accel_m_s2, knee_rad, knee_rate_rad_s, ref_force_n, ref_force_rate_n_per_s, ref_force_accel_n_per_s2, next_ref_force_n, next_ref_force_rate_n_per_s, next_ref_force_accel_n_per_s2, valve_command_limit] = s.reading_values();
         *self = Obs {
-            t_s: s.t_s,
-            period_s: s.period_s,
-            force_n: s.y.force_n,
-            force_rate_n_per_s: s.y.force_rate_n_per_s,
-            spool_m: s.y.spool_m,
-            piston_m: s.y.piston_m,
-            piston_velocity_m_s: s.y.piston_velocity_m_s,
-            piston_accel_m_s2: s.y.piston_accel_m_s2,
-            knee_rad: s.y.knee_rad,
-            knee_rate_rad_s: s.y.knee_rate_rad_s,
-            ref_force_n: s.r.value,
-            ref_force_rate_n_per_s: s.r.rate,
-            ref_force_accel_n_per_s2: s.r.accel,
-            next_ref_force_n: s.r_next.value,
-            next_ref_force_rate_n_per_s: s.r_next.rate,
-            next_ref_force_accel_n_per_s2: s.r_next.accel,
-            valve_command_limit: s.valve_limit.0,
+            t_s,
+            period_s,
+            force_n,
+            force_rate_n_per_s,
+            spool_m,
+            piston_m,
+            piston_velocity_m_s,
+            piston_accel_m_s2,
+            knee_rad,
+            knee_rate_rad_s,
+            ref_force_n,
+            ref_force_rate_n_per_s,
+            ref_force_accel_n_per_s2,
+            next_ref_force_n,
+            next_ref_force_rate_n_per_s,
+            next_ref_force_accel_n_per_s2,
+            valve_command_limit,
             counts: (c[0], c[1], c[2], c[3], c[4]),
         };
     }
@@ -151,7 +131,7 @@ impl Obs {
     /// The reading names, in the order of [`Obs::array`].
     #[classattr]
     fn fields() -> Vec<&'static str> {
-        OBS_FIELDS.to_vec()
+        READINGS.iter().map(|r| r.name).collect()
     }
 
     /// The readings as a numpy float64 vector, in the order of `Obs.fields`.
@@ -165,7 +145,7 @@ impl Obs {
     }
 
     fn __repr__(&self) -> String {
-        let parts: Vec<String> = OBS_FIELDS.iter().zip(self.values()).map(|(n, v)| format!("{n}={v}")).collect();
+        let parts: Vec<String> = READINGS.iter().map(|r| r.name).zip(self.values()).map(|(n, v)| format!("{n}={v}")).collect();
         format!("Obs({})", parts.join(", "))
     }
 }

@@ -152,6 +152,69 @@ pub struct SampleInput {
     pub valve_limit: ValveLimit,
 }
 
+/// One reading a sampled controller gets, by the name every route uses (the Python `Obs`
+/// attribute, the C plugin's `ExolegReadings` field, the FMU's output variable).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ReadingInfo {
+    /// Name, with its unit in the suffix.
+    pub name: &'static str,
+    /// SI unit ("" for a pure number).
+    pub unit: &'static str,
+    /// What it is.
+    pub description: &'static str,
+}
+
+const fn reading(name: &'static str, unit: &'static str, description: &'static str) -> ReadingInfo {
+    ReadingInfo { name, unit, description }
+}
+
+/// The readings of one sample in the order of [`SampleInput::reading_values`].
+pub const READINGS: [ReadingInfo; 17] = [
+    reading("t_s", "s", "sample instant"),
+    reading("period_s", "s", "sample period"),
+    reading("force_n", "N", "load cell"),
+    reading("force_rate_n_per_s", "N/s", "the load cell's firmware difference"),
+    reading("spool_m", "m", "spool LVDT (NaN without the sensor)"),
+    reading("piston_m", "m", "piston position from t = 0"),
+    reading("piston_velocity_m_s", "m/s", "piston velocity"),
+    reading("piston_accel_m_s2", "m/s2", "filtered difference of the piston velocity"),
+    reading("knee_rad", "rad", "knee flexion (encoder)"),
+    reading("knee_rate_rad_s", "rad/s", "the encoder's filtered difference"),
+    reading("ref_force_n", "N", "desired force at the sample instant"),
+    reading("ref_force_rate_n_per_s", "N/s", "its first derivative"),
+    reading("ref_force_accel_n_per_s2", "N/s2", "its second derivative"),
+    reading("next_ref_force_n", "N", "desired force one sample period ahead"),
+    reading("next_ref_force_rate_n_per_s", "N/s", "its first derivative"),
+    reading("next_ref_force_accel_n_per_s2", "N/s2", "its second derivative"),
+    reading("valve_command_limit", "", "|u| <= limit (0 = none)"),
+];
+
+impl SampleInput {
+    /// The readings as numbers, in the order of [`READINGS`].
+    pub fn reading_values(&self) -> [f64; 17] {
+        let (y, r, n) = (&self.y, &self.r, &self.r_next);
+        [
+            self.t_s,
+            self.period_s,
+            y.force_n,
+            y.force_rate_n_per_s,
+            y.spool_m,
+            y.piston_m,
+            y.piston_velocity_m_s,
+            y.piston_accel_m_s2,
+            y.knee_rad,
+            y.knee_rate_rad_s,
+            r.value,
+            r.rate,
+            r.accel,
+            n.value,
+            n.rate,
+            n.accel,
+            self.valve_limit.0,
+        ]
+    }
+}
+
 /// Why a sampled controller stops the run (a C plugin's stop status, a failing callback).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlStop {

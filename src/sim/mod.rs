@@ -55,7 +55,7 @@ use crate::human::HumanMode;
 use crate::hydraulics::ActuatorMode;
 use crate::plant::PlantSetup;
 use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs, ReducedLegPlant};
-use crate::record::{Layout, RecordSink};
+use crate::record::{Layout, RecordSink, Row};
 use crate::sensors::{SampledSensors, ZeroOrderHold};
 use stage::Dynamics;
 use std::sync::Arc;
@@ -682,18 +682,26 @@ impl Simulation {
         Ok(())
     }
 
-    /// Record the final state, evaluated the way the next step would see it.
-    pub fn finish(&mut self, sink: &mut dyn RecordSink) -> Result<()> {
-        let t_end = self.t_s();
+    /// The row of the state now, evaluated the way the next step would see it (with the
+    /// command held so far): what [`Self::finish`] records, and an FMU's outputs between
+    /// steps. It changes nothing the run computes.
+    pub fn row_now(&mut self) -> Row {
+        let t = self.t_s();
         self.begin();
         let d = self.dynamics();
         let mut dc = vec![0.0; self.controller_state.len()];
-        let s = d.evaluate(t_end, &self.state, &self.controller_state, &mut dc, self.plant.as_ref(), &self.held);
-        let w1 = self.interaction(t_end, s.force_rate_n_per_s);
-        let mut row = d.row(t_end, &self.state, &s, w1, self.plant.as_ref(), &self.held);
+        let s = d.evaluate(t, &self.state, &self.controller_state, &mut dc, self.plant.as_ref(), &self.held);
+        let w1 = self.interaction(t, s.force_rate_n_per_s);
+        let mut row = d.row(t, &self.state, &s, w1, self.plant.as_ref(), &self.held);
         if let ControlBlock::Sampled(l) = &self.control {
             row.log = l.log;
         }
+        row
+    }
+
+    /// Record the final state, evaluated the way the next step would see it.
+    pub fn finish(&mut self, sink: &mut dyn RecordSink) -> Result<()> {
+        let row = self.row_now();
         sink.row(&row)
     }
 }
