@@ -131,6 +131,24 @@ pub enum Command {
         #[arg(long, conflicts_with_all = ["scenario", "plant"])]
         firmware: bool,
     },
+    /// Package a scenario's plant as an FMI 2.0 co-simulation FMU for Simulink, OpenModelica,
+    /// FMPy or any FMI master: everything but the controller (the master reads the sensor
+    /// readings and sets the valve command at every sample instant).
+    Fmu {
+        /// Scenario file (TOML). Default: the embedded paper Figure 5 case. Its controller is
+        /// dropped; its sensors, reference, human, disturbances and leg are packaged.
+        scenario: Option<PathBuf>,
+        /// Override any scenario key (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        sets: Vec<String>,
+        /// The FMU file to write.
+        #[arg(long, default_value = "exoleg.fmu")]
+        out: PathBuf,
+        /// The FMU's shared library (built by `cargo build --release -p exoleg-fmu`). Default:
+        /// next to this executable.
+        #[arg(long, value_name = "PATH")]
+        library: Option<PathBuf>,
+    },
 }
 
 fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
@@ -342,6 +360,29 @@ fn cmd_firmware(json: Option<PathBuf>, sets: Vec<String>) -> Result<i32> {
     Ok(EXIT_OK)
 }
 
+/// `exoleg fmu`.
+fn cmd_fmu(scenario: Option<PathBuf>, sets: Vec<String>, out: PathBuf, library: Option<PathBuf>) -> Result<i32> {
+    let resolved = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
+    for w in &resolved.warnings {
+        eprintln!("warning: {w}");
+    }
+    let library = library.or_else(crate::fmu::default_library).ok_or_else(|| {
+        Error::Usage("cannot locate the FMU library next to this executable: pass --library PATH".into())
+    })?;
+    let r = crate::fmu::package(&resolved, &library, &out)?;
+    println!("wrote {} ({} bytes) from {}", out.display(), r.bytes, resolved.source_name);
+    println!("GUID                {}", r.guid);
+    println!(
+        "outputs             {} (17 readings of the latest sample, the rest true_* time-series columns)",
+        r.outputs
+    );
+    println!("input               valve_command (latched at the sample instants)");
+    println!("parameters          {} (set before fmi2ExitInitializationMode)", r.parameters);
+    println!("files in resources  {}", r.files);
+    println!("communication step  {} s (the sample period: one reading and one command per step)", r.sample_period_s);
+    Ok(EXIT_OK)
+}
+
 /// On SIGINT, SIGTERM or SIGHUP (Ctrl-C, `kill`, Slurm and Kubernetes stopping a job):
 /// remove the temporary output folders being written, then exit with 128 + the signal (as a
 /// shell reports it). Nothing half-written is left, as when a run fails.
@@ -369,5 +410,6 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Merge { shards, out } => cmd_merge(shards, out),
         Command::Compare { firmware: true, json, sets, .. } => cmd_firmware(json, sets),
         Command::Compare { scenario, plant, json, sets, .. } => cmd_compare(scenario, plant, json, sets),
+        Command::Fmu { scenario, sets, out, library } => cmd_fmu(scenario, sets, out, library),
     }
 }

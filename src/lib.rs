@@ -9,7 +9,8 @@
 //! [`sim`] is the co-simulation loop ([`integrator`] its fixed-step schemes); [`session`] runs
 //! it with the online [`metrics`] and the caller's [`record`] sink ([`output`]: streamed CSV,
 //! JSON, plots); [`study`] builds single runs with any controller, comparisons, sweeps and the
-//! robustness report on top; [`cli`] is the command line.
+//! robustness report on top; [`fmu`] packs the plant as an FMI 2.0 co-simulation FMU (the
+//! `fmu/` crate exports its C entry points); [`cli`] is the command line.
 //!
 //! Dependencies point one way, from the ground floor up (a module imports only from the
 //! lines above its own; `tests/it/architecture.rs` checks it, and that no two files import
@@ -25,7 +26,7 @@
 //! sim
 //! session, output
 //! scenario
-//! study
+//! study, fmu
 //! cli
 //! ```
 

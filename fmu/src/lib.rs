@@ -95,7 +95,11 @@ unsafe fn text<'a>(p: *const c_char) -> Option<&'a str> {
 }
 
 /// Run `f` on the instance behind `c`, logging its error and catching a panic.
-unsafe fn call(c: *mut c_void, what: &str, f: impl FnOnce(&mut Instance) -> Result<Fmi2Status, FmiError>) -> Fmi2Status {
+unsafe fn call(
+    c: *mut c_void,
+    what: &str,
+    f: impl FnOnce(&mut Instance) -> Result<Fmi2Status, FmiError>,
+) -> Fmi2Status {
     if c.is_null() {
         return ERROR;
     }
@@ -212,7 +216,9 @@ unsafe fn instantiate(
     resource_location: *const c_char,
 ) -> Result<(Slave, Vec<String>), FmiError> {
     if fmu_type != CO_SIMULATION {
-        return Err(FmiError { message: "this FMU is for co-simulation only (fmuType must be fmi2CoSimulation)".into() });
+        return Err(FmiError {
+            message: "this FMU is for co-simulation only (fmuType must be fmi2CoSimulation)".into(),
+        });
     }
     let guid = text(guid).ok_or_else(|| FmiError { message: "fmuGUID is missing".into() })?;
     let uri = text(resource_location).ok_or_else(|| FmiError {
@@ -299,7 +305,12 @@ pub unsafe extern "C" fn fmi2GetReal(c: *mut c_void, vr: *const c_uint, nvr: usi
 }
 
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetInteger(c: *mut c_void, vr: *const c_uint, nvr: usize, value: *mut c_int) -> Fmi2Status {
+pub unsafe extern "C" fn fmi2GetInteger(
+    c: *mut c_void,
+    vr: *const c_uint,
+    nvr: usize,
+    value: *mut c_int,
+) -> Fmi2Status {
     call(c, "fmi2GetInteger", |i| {
         let (Some(vrs), Some(out)) = (slice(vr, nvr), slice_mut(value, nvr)) else { return Err(null_arg()) };
         let mut tmp = vec![0.0; nvr];
@@ -321,7 +332,12 @@ pub unsafe extern "C" fn fmi2SetReal(c: *mut c_void, vr: *const c_uint, nvr: usi
 }
 
 #[no_mangle]
-pub unsafe extern "C" fn fmi2SetInteger(c: *mut c_void, vr: *const c_uint, nvr: usize, value: *const c_int) -> Fmi2Status {
+pub unsafe extern "C" fn fmi2SetInteger(
+    c: *mut c_void,
+    vr: *const c_uint,
+    nvr: usize,
+    value: *const c_int,
+) -> Fmi2Status {
     call(c, "fmi2SetInteger", |i| {
         let (Some(vrs), Some(values)) = (slice(vr, nvr), slice(value, nvr)) else { return Err(null_arg()) };
         let values: Vec<f64> = values.iter().map(|&x| x as f64).collect();
@@ -334,18 +350,30 @@ pub unsafe extern "C" fn fmi2SetInteger(c: *mut c_void, vr: *const c_uint, nvr: 
 unsafe fn no_variables(c: *mut c_void, what: &str, vr: *const c_uint, nvr: usize) -> Fmi2Status {
     call(c, what, |_| match slice(vr, nvr) {
         Some([]) => Ok(OK),
-        Some(v) => Err(FmiError { message: format!("unknown value reference {} (this FMU has no such variables)", v[0]) }),
+        Some(v) => {
+            Err(FmiError { message: format!("unknown value reference {} (this FMU has no such variables)", v[0]) })
+        }
         None => Err(null_arg()),
     })
 }
 
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetBoolean(c: *mut c_void, vr: *const c_uint, nvr: usize, _value: *mut c_int) -> Fmi2Status {
+pub unsafe extern "C" fn fmi2GetBoolean(
+    c: *mut c_void,
+    vr: *const c_uint,
+    nvr: usize,
+    _value: *mut c_int,
+) -> Fmi2Status {
     no_variables(c, "fmi2GetBoolean", vr, nvr)
 }
 
 #[no_mangle]
-pub unsafe extern "C" fn fmi2SetBoolean(c: *mut c_void, vr: *const c_uint, nvr: usize, _value: *const c_int) -> Fmi2Status {
+pub unsafe extern "C" fn fmi2SetBoolean(
+    c: *mut c_void,
+    vr: *const c_uint,
+    nvr: usize,
+    _value: *const c_int,
+) -> Fmi2Status {
     no_variables(c, "fmi2SetBoolean", vr, nvr)
 }
 
@@ -395,7 +423,11 @@ pub unsafe extern "C" fn fmi2FreeFMUstate(c: *mut c_void, state: *mut *mut c_voi
 }
 
 #[no_mangle]
-pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: *mut c_void, _state: *mut c_void, _size: *mut usize) -> Fmi2Status {
+pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
+    c: *mut c_void,
+    _state: *mut c_void,
+    _size: *mut usize,
+) -> Fmi2Status {
     unsupported(c, "fmi2SerializedFMUstateSize", NO_STATE)
 }
 

@@ -80,7 +80,8 @@ impl Obs {
     /// Fill from one sample (the fields in the order of `exoleg::control::READINGS`).
     pub fn set(&mut self, s: &SampleInput) {
         let c = s.counts.0;
-        let [t_s, period_s, force_n, force_rate_n_per_s, spool_m, piston_m, piston_velocity_m_s, piston_accel_m_s2, knee_rad, knee_rate_rad_s, ref_force_n, ref_force_rate_n_per_s, ref_force_accel_n_per_s2, next_ref_force_n, next_ref_force_rate_n_per_s, next_ref_force_accel_n_per_s2, valve_command_limit] = s.reading_values();
+        let [t_s, period_s, force_n, force_rate_n_per_s, spool_m, piston_m, piston_velocity_m_s, piston_accel_m_s2, knee_rad, knee_rate_rad_s, ref_force_n, ref_force_rate_n_per_s, ref_force_accel_n_per_s2, next_ref_force_n, next_ref_force_rate_n_per_s, next_ref_force_accel_n_per_s2, valve_command_limit] =
+            s.reading_values();
         *self = Obs {
             t_s,
             period_s,
@@ -145,7 +146,8 @@ impl Obs {
     }
 
     fn __repr__(&self) -> String {
-        let parts: Vec<String> = READINGS.iter().map(|r| r.name).zip(self.values()).map(|(n, v)| format!("{n}={v}")).collect();
+        let parts: Vec<String> =
+            READINGS.iter().map(|r| r.name).zip(self.values()).map(|(n, v)| format!("{n}={v}")).collect();
         format!("Obs({})", parts.join(", "))
     }
 }

@@ -146,11 +146,11 @@ fn stage_resources(dir: &Path, text: &str, files: &[(String, PathBuf)]) -> Resul
 /// Write the FMU of `resolved` to `out` (through a temporary file, renamed when complete),
 /// with `library` (the `exoleg-fmu` crate's shared library) as its binary.
 pub fn package(resolved: &ResolvedScenario, library: &Path, out: &Path) -> Result<FmuReport> {
-    let lib = std::fs::read(library).map_err(|e| {
-        Error::Usage(format!(
-            "the FMU library {}: {e}. Build it with `cargo build --release -p exoleg-fmu`, or pass --library PATH",
-            library.display()
-        ))
+    let lib = std::fs::read(library).map_err(|e| Error::Read {
+        path: library.to_path_buf(),
+        message: format!(
+            "{e} (the FMU's library: build it with `cargo build --release -p exoleg-fmu`, or pass --library PATH)"
+        ),
     })?;
     let (text, files) = resource_scenario(resolved)?;
     let stage = tempfile::tempdir()
@@ -160,7 +160,8 @@ pub fn package(resolved: &ResolvedScenario, library: &Path, out: &Path) -> Resul
     let m = &resolved.model;
     let period = if m.sample_every.is_some() { m.sample_period_s } else { m.dt_s };
     let name = format!("exoleg {}", resolved.source_name);
-    let info = DescriptionInfo { model_name: &name, guid: &guid, stop_time_s: m.steps as f64 * m.dt_s, step_size_s: period };
+    let info =
+        DescriptionInfo { model_name: &name, guid: &guid, stop_time_s: m.steps as f64 * m.dt_s, step_size_s: period };
     let xml = model_description(&info, slave.variables());
     let (platform, ext) = platform_folder();
     let mut entries: Vec<(String, Vec<u8>, u32)> = vec![

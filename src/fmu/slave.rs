@@ -146,8 +146,17 @@ impl Slave {
         let by_ref = vars.iter().enumerate().map(|(i, v)| ((v.ty, v.vr), i)).collect();
         let values = vars.iter().map(|v| v.start.unwrap_or(0.0)).collect();
         let nominal = nominal_values(&resolved.model);
-        let slave =
-            Slave { base, layout, vars, by_ref, values, nominal, stop_time_s: None, phase: Phase::Instantiated, run: None };
+        let slave = Slave {
+            base,
+            layout,
+            vars,
+            by_ref,
+            values,
+            nominal,
+            stop_time_s: None,
+            phase: Phase::Instantiated,
+            run: None,
+        };
         Ok((slave, resolved.warnings, guid))
     }
 
@@ -173,7 +182,9 @@ impl Slave {
             return Err(FmiError::new("fmi2SetupExperiment is allowed only after fmi2Instantiate"));
         }
         if start_s != 0.0 {
-            return Err(FmiError::new(format!("the start time must be 0 s (the scenario starts there), got {start_s}")));
+            return Err(FmiError::new(format!(
+                "the start time must be 0 s (the scenario starts there), got {start_s}"
+            )));
         }
         if let Some(s) = stop_s {
             if !(s.is_finite() && s > 0.0) {

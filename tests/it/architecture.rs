@@ -23,7 +23,7 @@ const LAYERS: [&[&str]; 11] = [
     &["sim"],
     &["session", "output"],
     &["scenario"],
-    &["study"],
+    &["study", "fmu"],
     &["cli"],
 ];
 

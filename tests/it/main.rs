@@ -8,6 +8,7 @@ mod bench_motion;
 mod cli;
 mod end_stops;
 mod firmware;
+mod fmu;
 mod gait;
 mod hardening;
 mod hostile;
