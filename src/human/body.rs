@@ -54,10 +54,13 @@ pub struct HipParams {
     /// Mass the pelvis carries (kg): the trunk, arms, head and the other leg. Default: the
     /// subject's mass minus this leg's (URDF links other than the cylinder). > 0.
     pub body_mass_kg: Option<f64>,
-    /// Anterior pelvic tilt (deg): the data's hip flexion is measured from the pelvis, which
-    /// leans forward in walking; the carriage's pelvis stays upright, so the thigh follows
-    /// the hip flexion minus this. Default 10 (typical in adult walking). -30..=45.
-    pub pelvic_tilt_deg: f64,
+    /// Anterior pelvic tilt (deg), constant: the data's hip flexion is measured from the
+    /// pelvis, which leans forward in walking; the carriage's pelvis stays upright, so the
+    /// thigh follows the hip flexion minus the tilt. Default: the gait data's own
+    /// `pelvis_tilt_deg` column over the cycle when it has one (every shipped trial does),
+    /// else 10 (typical in adult walking); `summary.json` (`walking_assumptions`) says which.
+    /// Setting it overrides the data's column. -30..=45.
+    pub pelvic_tilt_deg: Option<f64>,
     /// Hip spring about the data's angle (N m/rad). Default 500 (about 7 N m/rad per kg of a
     /// 75 kg subject): compliant. A stiffly held hip fixes the pelvis's path over the foot, so
     /// the foot is dragged against the belt and the stance knee moment loses its shape (on
@@ -101,7 +104,7 @@ impl Default for HipParams {
             mode: None,
             subject_mass_kg: 75.0,
             body_mass_kg: None,
-            pelvic_tilt_deg: 10.0,
+            pelvic_tilt_deg: None,
             stiffness_nm_per_rad: 500.0,
             damping_nm_s_per_rad: 30.0,
             moment_share: 1.0,

@@ -329,11 +329,25 @@ pub struct FootPoints {
 /// sagittal outline; meshes are skipped. None when the model has no collision shapes or the
 /// loop cannot close at `knee_rad`.
 pub fn foot_points_at(model: &LegSpec, hip_rad: f64, knee_rad: f64, ankle_rad: f64) -> Option<FootPoints> {
+    let (ankle, points) = sole_points_at(model, hip_rad, knee_rad, ankle_rad)?;
+    let lowest = points.into_iter().reduce(|a, b| if b.z < a.z { b } else { a })?;
+    Some(FootPoints { ankle, lowest })
+}
+
+/// The ankle centre and the bottom point of every collision shape (spheres and capsules by
+/// their radius, boxes and cylinders by the corners of their sagittal outline; meshes
+/// skipped), in the order of the model's collisions, for the angles of [`foot_points_at`].
+pub fn sole_points_at(
+    model: &LegSpec,
+    hip_rad: f64,
+    knee_rad: f64,
+    ankle_rad: f64,
+) -> Option<(super::planar::P2, Vec<super::planar::P2>)> {
     use super::model::CollisionShape as S;
     use super::planar::P2;
     let poses = link_poses_full_at(model, hip_rad, knee_rad, ankle_rad)?;
     let foot = model.ankle.map_or_else(|| model.joints[model.knee].child, |a| model.joints[a].child);
-    let mut lowest: Option<P2> = None;
+    let mut out = Vec::new();
     for c in &model.collisions {
         let pose = poses[c.link].mul(&Pose2::new(c.origin_xyz[0], c.origin_xyz[2], c.origin_rpy[1]));
         let (corners, radius): (Vec<P2>, f64) = match &c.shape {
@@ -349,14 +363,9 @@ pub fn foot_points_at(model: &LegSpec, hip_rad: f64, knee_rad: f64, ankle_rad: f
             }
             S::Mesh { .. } => continue,
         };
-        for k in corners {
-            let p = pose.apply(k).minus(P2::new(0.0, radius));
-            if lowest.is_none_or(|l| p.z < l.z) {
-                lowest = Some(p);
-            }
-        }
+        out.extend(corners.into_iter().map(|k| pose.apply(k).minus(P2::new(0.0, radius))));
     }
-    Some(FootPoints { ankle: poses[foot].t, lowest: lowest? })
+    Some((poses[foot].t, out))
 }
 
 /// Planar poses of every link (hip frame: hip at the origin, z up) for hip flexion, knee

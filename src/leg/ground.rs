@@ -1,6 +1,18 @@
-//! Ground contact in Rapier: the URDF's `<collision>` shapes as colliders on the leg's bodies,
-//! a flat ground (a half-space at `height_m`) with Coulomb friction, a treadmill belt as the
-//! contacts' tangent velocity (a physics hook), and what the contacts did over a step.
+//! Ground contact in Rapier, two laws:
+//! - **compliant** (the default): each sole sphere is a Hunt-Crossley contact with the ground
+//!   plane, `F_n = 0.4714 E sqrt(R) x^1.5 (1 + 1.5 c xdot)` (OpenSim/Simbody's
+//!   SmoothSphereHalfSpaceForce without its smoothing; Serrancoli et al. 2019, Falisse et al.
+//!   2019: E = 1e7 N/m^2 gives a heel-pad-sized 9 mm under one body weight, c = 2 s/m), and
+//!   Coulomb friction through a sticking anchor spring on the belt (`k_t` with the damping of a
+//!   1 kg point, critically; it slides at `mu F_n`, no creep while it sticks). Forces are
+//!   evaluated from the state at the start of each step and applied as external forces, so a
+//!   heel strike spreads over the milliseconds of the pad's compression;
+//! - **rigid**: the URDF's `<collision>` shapes as Rapier colliders (a soft constraint at
+//!   `contact_frequency_hz`), the belt as the contacts' tangent velocity (a physics hook): a
+//!   heel strike resolves within a step (tens of kN at 0.25 ms).
+//!
+//! Either way a flat ground (a half-space at `height_m`) with Coulomb friction, and what the
+//! contacts did over a step.
 
 use rapier3d_f64::glamx::{DQuat, DVec3};
 use rapier3d_f64::math::Pose;
@@ -26,13 +38,55 @@ pub struct GroundConfig {
     pub contact_frequency_hz: f64,
     /// Damping ratio of the contact constraint's regularisation (-).
     pub contact_damping_ratio: f64,
+    /// The compliant contact law's parameters; None: Rapier's rigid contacts.
+    pub compliant: Option<CompliantContact>,
+}
+
+/// Parameters of the compliant sole contact (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CompliantContact {
+    /// Contact modulus E (N/m^2) of the Hertz term `0.4714 E sqrt(R) x^1.5`.
+    pub modulus_pa: f64,
+    /// Hunt-Crossley dissipation c (s/m): the normal force is scaled by `1 + 1.5 c xdot`.
+    pub dissipation_s_per_m: f64,
+    /// Stiffness of the friction anchor spring per contact point (N/m).
+    pub friction_stiffness_n_per_m: f64,
+}
+
+/// Factor of the Hertz term of a sphere on a half-space as OpenSim writes it
+/// (`(4/3) k sqrt(R k)` with `k = E^(2/3) / 2`).
+const HERTZ: f64 = 0.471_404_520_791_031_7;
+/// Radius (m) given to the sagittal corners of a box or cylinder sole under compliant contact.
+pub const CORNER_RADIUS_M: f64 = 0.005;
+/// Mass (kg) whose critical damping the friction spring has.
+const FRICTION_MASS_KG: f64 = 1.0;
+
+/// One contact point of the compliant law: a sphere on a link, and where its friction anchor
+/// sits on the belt while it touches.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct ContactSphere {
+    link: usize,
+    /// Centre in the link's body frame (m).
+    center_body: DVec3,
+    radius_m: f64,
+    anchor_x_m: Option<f64>,
+}
+
+/// The compliant contact's state.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Compliant {
+    params: CompliantContact,
+    spheres: Vec<ContactSphere>,
+    ground_z_m: f64,
+    friction: f64,
 }
 
 /// The treadmill: every contact with the ground gets the belt's velocity as its tangent
-/// velocity.
+/// velocity (rigid contacts), or the compliant law's state.
 pub(super) struct Belt {
     pub ground: ColliderHandle,
     pub speed_m_s: f64,
+    pub compliant: Option<Compliant>,
 }
 
 impl PhysicsHooks for Belt {
@@ -70,28 +124,71 @@ fn groups(own: Group, other: Group) -> InteractionGroups {
     InteractionGroups::new(own, other, Default::default())
 }
 
-/// Add the URDF's collision shapes as colliders (no density: the URDF's `<inertial>` stays the
-/// mass) on the bodies that carry their links, and the ground. Returns the ground's body and
-/// collider. A mesh is refused, naming its link.
+fn mesh_error(model: &LegSpec, link: usize, filename: &str) -> LegError {
+    LegError::Unsupported(format!(
+        "link '{}' <collision> is a mesh ({filename}): ground contact needs boxes, cylinders, spheres or capsules",
+        model.links()[link].name
+    ))
+}
+
+/// The compliant law's contact spheres: each sphere, both ends of a capsule, the sagittal
+/// corners of a box or cylinder (radius [`CORNER_RADIUS_M`]), in their link's body frame.
+fn contact_spheres(model: &LegSpec, link_offset: &[Pose]) -> Result<Vec<ContactSphere>, LegError> {
+    let mut out = Vec::new();
+    for c in model.collisions() {
+        let (points, radius): (Vec<DVec3>, f64) = match &c.shape {
+            CollisionShape::Sphere { radius } => (vec![DVec3::ZERO], *radius),
+            CollisionShape::Capsule { radius, length } => {
+                (vec![DVec3::new(0.0, 0.0, length / 2.0), DVec3::new(0.0, 0.0, -length / 2.0)], *radius)
+            }
+            CollisionShape::Box { size } => {
+                let (x, z) = (size[0] / 2.0 - CORNER_RADIUS_M, size[2] / 2.0 - CORNER_RADIUS_M);
+                (corners(x.max(0.0), z.max(0.0)), CORNER_RADIUS_M)
+            }
+            CollisionShape::Cylinder { radius, length } => {
+                let (x, z) = (radius - CORNER_RADIUS_M, length / 2.0 - CORNER_RADIUS_M);
+                (corners(x.max(0.0), z.max(0.0)), CORNER_RADIUS_M)
+            }
+            CollisionShape::Mesh { filename } => return Err(mesh_error(model, c.link, filename)),
+        };
+        let local = link_offset[c.link] * super::pose::pose_of(c.origin_xyz, c.origin_rpy);
+        for p in points {
+            out.push(ContactSphere { link: c.link, center_body: local * p, radius_m: radius, anchor_x_m: None });
+        }
+    }
+    Ok(out)
+}
+
+fn corners(x: f64, z: f64) -> Vec<DVec3> {
+    vec![DVec3::new(x, 0.0, z), DVec3::new(-x, 0.0, z), DVec3::new(x, 0.0, -z), DVec3::new(-x, 0.0, -z)]
+}
+
+/// Add the ground, and either the URDF's collision shapes as colliders (rigid contacts; no
+/// density: the URDF's `<inertial>` stays the mass) on the bodies that carry their links, or
+/// the compliant law's contact spheres. A mesh is refused, naming its link.
 pub(super) fn insert_ground(
     world: &mut PhysicsWorld,
     model: &LegSpec,
     link_body: &[RigidBodyHandle],
     link_offset: &[Pose],
     g: &GroundConfig,
-) -> Result<ColliderHandle, LegError> {
-    for c in model.collisions() {
+) -> Result<Belt, LegError> {
+    let compliant = match g.compliant {
+        Some(params) => Some(Compliant {
+            params,
+            spheres: contact_spheres(model, link_offset)?,
+            ground_z_m: g.height_m,
+            friction: g.friction,
+        }),
+        None => None,
+    };
+    for c in model.collisions().iter().filter(|_| compliant.is_none()) {
         let shape = match &c.shape {
             CollisionShape::Box { size } => ColliderBuilder::cuboid(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0),
             CollisionShape::Cylinder { radius, length } => ColliderBuilder::cylinder(length / 2.0, *radius),
             CollisionShape::Sphere { radius } => ColliderBuilder::ball(*radius),
             CollisionShape::Capsule { radius, length } => ColliderBuilder::capsule_z(length / 2.0, *radius),
-            CollisionShape::Mesh { filename } => {
-                return Err(LegError::Unsupported(format!(
-                    "link '{}' <collision> is a mesh ({filename}): ground contact needs boxes, cylinders, spheres or capsules",
-                    model.links()[c.link].name
-                )))
-            }
+            CollisionShape::Mesh { filename } => return Err(mesh_error(model, c.link, filename)),
         };
         let local = link_offset[c.link] * super::pose::pose_of(c.origin_xyz, c.origin_rpy);
         let shape = match &c.shape {
@@ -113,7 +210,61 @@ pub(super) fn insert_ground(
         .collision_groups(groups(Group::GROUP_2, Group::GROUP_1))
         .active_hooks(hooks)
         .build();
-    Ok(world.colliders.insert_with_parent(ground, body, &mut world.bodies))
+    let ground = world.colliders.insert_with_parent(ground, body, &mut world.bodies);
+    Ok(Belt { ground, speed_m_s: g.belt_speed_m_s, compliant })
+}
+
+/// The compliant law over the coming step of `dt_s`: each touching sphere's normal and
+/// friction forces, applied to its body at the contact point on the ground surface; returns
+/// what they add up to.
+pub(super) fn apply_compliant(
+    world: &mut PhysicsWorld,
+    link_body: &[RigidBodyHandle],
+    c: &mut Compliant,
+    belt_speed_m_s: f64,
+    dt_s: f64,
+) -> ContactReading {
+    let mut r = ContactReading::default();
+    let (mut cop, mut fz_sum) = ([0.0f64; 2], 0.0);
+    let p = c.params;
+    let kt = p.friction_stiffness_n_per_m;
+    let ct = 2.0 * (kt * FRICTION_MASS_KG).sqrt();
+    for s in c.spheres.iter_mut() {
+        let h = link_body[s.link];
+        let rb = &world.bodies[h];
+        let center = *rb.position() * s.center_body;
+        let x = c.ground_z_m + s.radius_m - center.z;
+        if x <= 0.0 {
+            s.anchor_x_m = None;
+            continue;
+        }
+        let point = DVec3::new(center.x, center.y, c.ground_z_m);
+        let v = rb.velocity_at_point(point);
+        let hertz = HERTZ * p.modulus_pa * s.radius_m.sqrt() * x * x.sqrt();
+        let fz = (hertz * (1.0 + 1.5 * p.dissipation_s_per_m * -v.z)).max(0.0);
+        let anchor = s.anchor_x_m.get_or_insert(point.x);
+        let mut fx = -kt * (point.x - *anchor) - ct * (v.x + belt_speed_m_s);
+        let limit = c.friction * fz;
+        if fx.abs() > limit {
+            fx = fx.signum() * limit;
+            *anchor = point.x + fx / kt;
+        }
+        // The anchor is a point of the belt: it moves with the surface.
+        *anchor -= belt_speed_m_s * dt_s;
+        let f = DVec3::new(fx, 0.0, fz);
+        world.bodies[h].add_force_at_point(f, point, true);
+        r.vertical_n += fz;
+        r.horizontal_n += fx;
+        r.penetration_m = r.penetration_m.max(x);
+        r.moment_origin_y_nm += point.cross(f).y;
+        cop[0] += point.x * fz;
+        cop[1] += point.z * fz;
+        fz_sum += fz;
+    }
+    if fz_sum > 0.0 {
+        r.cop_m = Some([cop[0] / fz_sum, cop[1] / fz_sum]);
+    }
+    r
 }
 
 /// Read the contacts of the ground after a step of `dt_s`.

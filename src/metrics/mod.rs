@@ -590,11 +590,15 @@ pub struct Criteria {
     pub max_valve_saturation_fraction: Option<f64>,
     /// Limit on the fraction of samples at the supply-pressure force limit.
     pub max_force_limit_fraction: Option<f64>,
+    /// Limit on the number of reasons a loaded-walking run is not walking
+    /// (`not_walking` in `summary.json`): 0 fails any run that is not walking. NaN (a
+    /// failure) for a run that is not loaded walking.
+    pub max_not_walking_flags: Option<f64>,
 }
 
 impl Criteria {
     /// The limits with their keys, in order.
-    pub fn limits(&self) -> [(&'static str, Option<f64>); 6] {
+    pub fn limits(&self) -> [(&'static str, Option<f64>); 7] {
         [
             ("max_force_error_n", self.max_force_error_n),
             ("rms_force_error_n", self.rms_force_error_n),
@@ -602,6 +606,7 @@ impl Criteria {
             ("knee_max_error_deg", self.knee_max_error_deg),
             ("max_valve_saturation_fraction", self.max_valve_saturation_fraction),
             ("max_force_limit_fraction", self.max_force_limit_fraction),
+            ("max_not_walking_flags", self.max_not_walking_flags),
         ]
     }
 
@@ -634,6 +639,7 @@ pub fn check_criteria(c: &Criteria, s: &Summary) -> Vec<CriterionResult> {
         s.knee_max_abs_error_deg.unwrap_or(nan),
         s.valve_saturation_fraction,
         s.force_limit_fraction,
+        s.contact.as_ref().filter(|c| c.pelvic_tilt.is_some()).map_or(nan, |c| c.not_walking.len() as f64),
     ];
     c.limits()
         .into_iter()

@@ -20,6 +20,21 @@ use std::sync::Arc;
 
 /// Vertical ground reaction (N) above which a row counts as stance.
 pub const STANCE_CONTACT_N: f64 = 20.0;
+/// Not walking: stance over this fraction of the time after the run-in.
+pub const NOT_WALKING_STANCE_FRACTION: f64 = 0.8;
+/// Not walking: a stride whose longest time without any ground contact (vertical reaction
+/// under [`NO_CONTACT_N`]) is shorter than this fraction of the stride (the swing foot never
+/// clears the ground).
+pub const NOT_WALKING_CLEARANCE_FRACTION: f64 = 0.05;
+/// Vertical ground reaction (N) under which the foot counts as off the ground.
+pub const NO_CONTACT_N: f64 = 1.0;
+/// Not walking: the hip below this fraction of the lowest hip height the data imply.
+pub const NOT_WALKING_PELVIS_FRACTION: f64 = 0.8;
+/// Not walking: the mean horizontal ground reaction below this fraction of the mean vertical
+/// one (the belt drags the leg back; walking at a steady speed, braking and propulsion
+/// balance over a stride: -0.04..+0.03 on the shipped trials; -0.10 with the belt 40 % faster
+/// than the leg's stance sweep, -0.45 in a collapse onto the belt).
+pub const NOT_WALKING_DRAG_RATIO: f64 = -0.075;
 /// Low-pass cut-off of the kinetics comparison (Hz).
 pub const KINETICS_LOWPASS_HZ: f64 = 10.0;
 const BINS: usize = 100;
@@ -33,6 +48,10 @@ pub struct DatasetComparison {
     pub grf_correlation: f64,
     /// Peak vertical ground reaction over the data's peak.
     pub grf_peak_ratio: f64,
+    /// The data's unfiltered peak vertical ground reaction (N, times the subject's mass): the
+    /// scale for the run's unfiltered `peak_ground_reaction_n`.
+    #[serde(default)]
+    pub data_peak_ground_reaction_n: f64,
     /// Correlation of the knee moment over 0-61 % with the data's.
     pub knee_moment_stance_correlation: f64,
     /// Extensor peak (N m, largest moment in 5-25 %) and where (% of the stride).
@@ -76,6 +95,17 @@ pub struct ContactSummary {
     pub force_rms_error_swing_n: Option<f64>,
     /// The comparison with the gait data (loaded walking only).
     pub dataset: Option<DatasetComparison>,
+    /// Why the run is not walking, one sentence each (empty when it walks; loaded walking
+    /// only): stance over [`NOT_WALKING_STANCE_FRACTION`], a stride whose swing foot never
+    /// clears the ground, the pelvis fallen below [`NOT_WALKING_PELVIS_FRACTION`] of the data's
+    /// lowest hip height, or the belt dragging the leg (the mean horizontal ground reaction
+    /// under [`NOT_WALKING_DRAG_RATIO`] of the vertical one). `criteria.max_not_walking_flags
+    /// = 0` fails such a run.
+    #[serde(default)]
+    pub not_walking: Vec<String>,
+    /// The pelvic tilt the run assumed (loaded walking only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pelvic_tilt: Option<String>,
 }
 
 /// Accumulates the contact figures row by row.
@@ -95,6 +125,58 @@ pub struct WalkingMetrics {
     force: [Rms; 2],
     /// First and last time after the run-in (s).
     span_s: Option<(f64, f64)>,
+    /// Sums of the horizontal and vertical ground reaction after the run-in (N).
+    grf_sums: [f64; 2],
+    /// Lowest hip height after the run-in (m).
+    min_pelvis_m: f64,
+    /// The stride being read, the start of its current time off the ground and its longest
+    /// (s), and the strides that never left the ground.
+    clearance: Clearance,
+}
+
+/// Per-stride time off the ground.
+#[derive(Debug, Clone, Default)]
+struct Clearance {
+    stride: Option<i64>,
+    stride_start_s: f64,
+    off_since_s: Option<f64>,
+    longest_s: f64,
+    last_t_s: f64,
+    stuck: Vec<i64>,
+}
+
+impl Clearance {
+    /// Close the stride being read if it was read whole (`stride_s` long).
+    fn close(&mut self, stride_s: f64) {
+        if let Some(k) = self.stride {
+            if let Some(since) = self.off_since_s {
+                self.longest_s = self.longest_s.max(self.last_t_s - since);
+            }
+            let whole = self.last_t_s - self.stride_start_s >= 0.95 * stride_s;
+            if whole && self.longest_s < NOT_WALKING_CLEARANCE_FRACTION * stride_s {
+                self.stuck.push(k);
+            }
+        }
+    }
+
+    fn row(&mut self, t_s: f64, vertical_n: f64, stride_s: f64) {
+        let k = (t_s / stride_s + 1e-9).floor() as i64;
+        if self.stride != Some(k) {
+            self.close(stride_s);
+            *self = Clearance {
+                stride: Some(k),
+                stride_start_s: t_s,
+                stuck: std::mem::take(&mut self.stuck),
+                ..Default::default()
+            };
+        }
+        if vertical_n < NO_CONTACT_N {
+            self.off_since_s.get_or_insert(t_s);
+        } else if let Some(since) = self.off_since_s.take() {
+            self.longest_s = self.longest_s.max(t_s - since);
+        }
+        self.last_t_s = t_s;
+    }
 }
 
 impl WalkingMetrics {
@@ -115,7 +197,55 @@ impl WalkingMetrics {
             knee: [Rms::default(); 2],
             force: [Rms::default(); 2],
             span_s: None,
+            grf_sums: [0.0; 2],
+            min_pelvis_m: f64::INFINITY,
+            clearance: Clearance::default(),
         }
+    }
+
+    /// Why the run is not walking (loaded walking only; see [`ContactSummary::not_walking`]).
+    fn not_walking(&self, stance_fraction: f64) -> Vec<String> {
+        let (Some(data), Some(stride)) = (self.data.as_ref(), self.stride_s) else { return Vec::new() };
+        if self.rows_after == 0 {
+            return Vec::new();
+        }
+        let mut why = Vec::new();
+        if stance_fraction > NOT_WALKING_STANCE_FRACTION {
+            why.push(format!(
+                "the foot is on the ground {:.0} % of the time (walking: about 60 %; flagged above {:.0} %)",
+                100.0 * stance_fraction,
+                100.0 * NOT_WALKING_STANCE_FRACTION
+            ));
+        }
+        let mut c = self.clearance.clone();
+        c.close(stride);
+        if !c.stuck.is_empty() {
+            why.push(format!(
+                "the swing foot never clears the ground in {} of the strides after the run-in (off the ground less \
+                 than {:.0} % of the stride)",
+                c.stuck.len(),
+                100.0 * NOT_WALKING_CLEARANCE_FRACTION
+            ));
+        }
+        let lowest = data.lowest_pelvis_height_m();
+        if self.min_pelvis_m < NOT_WALKING_PELVIS_FRACTION * lowest {
+            why.push(format!(
+                "the pelvis falls to {:.3} m, below {:.0} % of the lowest hip height the data imply ({:.3} m)",
+                self.min_pelvis_m,
+                100.0 * NOT_WALKING_PELVIS_FRACTION,
+                lowest
+            ));
+        }
+        let ratio = self.grf_sums[0] / self.grf_sums[1];
+        if ratio < NOT_WALKING_DRAG_RATIO {
+            why.push(format!(
+                "the belt drags the leg back: the mean horizontal ground reaction is {:.0} % of the vertical one \
+                 (walking: about 0; flagged under {:.0} %)",
+                100.0 * ratio,
+                100.0 * NOT_WALKING_DRAG_RATIO
+            ));
+        }
+        why
     }
 
     /// The figures.
@@ -130,6 +260,8 @@ impl WalkingMetrics {
             force_rms_error_stance_n: self.force[0].value_if_any(),
             force_rms_error_swing_n: self.force[1].value_if_any(),
             dataset: self.compare(),
+            not_walking: self.not_walking(frac),
+            pelvic_tilt: self.data.as_ref().map(|d| d.pelvic_tilt.describe()),
         }
     }
 
@@ -154,6 +286,7 @@ impl WalkingMetrics {
             strides_averaged: self.span_s.map_or(0.0, |(a, b)| (b - a) / stride),
             grf_correlation: correlation(&g, &dg),
             grf_peak_ratio: max(&g) / max(&dg),
+            data_peak_ground_reaction_n: (0..1000).map(|i| data.grf_at_pct(i as f64 / 10.0)).fold(0.0, f64::max),
             knee_moment_stance_correlation: correlation(&k[..61], &dk[..61]),
             extensor_peak_nm: ext,
             extensor_peak_pct: at(ext_at),
@@ -234,6 +367,12 @@ impl RecordSink for WalkingMetrics {
             return Ok(());
         }
         self.peak_grf = self.peak_grf.max(c.ground_reaction_vertical_n);
+        self.grf_sums[0] += c.ground_reaction_horizontal_n;
+        self.grf_sums[1] += c.ground_reaction_vertical_n;
+        self.min_pelvis_m = self.min_pelvis_m.min(c.pelvis_height_m);
+        if let Some(stride) = self.stride_s {
+            self.clearance.row(r.t_s, c.ground_reaction_vertical_n, stride);
+        }
         let stance = c.ground_reaction_vertical_n > STANCE_CONTACT_N;
         self.span_s = Some((self.span_s.map_or(r.t_s, |s| s.0), r.t_s));
         self.rows_after += 1;

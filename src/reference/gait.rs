@@ -4,14 +4,23 @@
 use super::RefSample;
 use crate::error::{Error, Result};
 
-/// Built-in trials (the shared WBDS files, embedded so a run needs no data path).
-pub const BUILTIN_TRIALS: [(&str, &str, f64); 6] = [
+/// Built-in trials (the shared WBDS files, embedded so a run needs no data path): name, CSV
+/// text, default stride time (s). The treadmill trials' strides are the subjects' measured
+/// cadences (subject 01) or an estimate (subject 02: no cadence is published; from a
+/// speed-cadence relation fitted to the WBDS young adults, `assets/gait/README.md`).
+pub const BUILTIN_TRIALS: [(&str, &str, f64); 12] = [
     ("wbds01_overground_comfortable", include_str!("../../assets/gait/wbds01_overground_comfortable.csv"), 1.10),
     ("wbds01_overground_fast", include_str!("../../assets/gait/wbds01_overground_fast.csv"), 0.95),
     ("wbds01_overground_slow", include_str!("../../assets/gait/wbds01_overground_slow.csv"), 1.30),
     ("wbds02_overground_comfortable", include_str!("../../assets/gait/wbds02_overground_comfortable.csv"), 1.10),
     ("wbds02_overground_fast", include_str!("../../assets/gait/wbds02_overground_fast.csv"), 0.95),
     ("wbds02_overground_slow", include_str!("../../assets/gait/wbds02_overground_slow.csv"), 1.30),
+    ("wbds01_treadmill_t03", include_str!("../../assets/gait/wbds01_treadmill_t03.csv"), 1.3833),
+    ("wbds01_treadmill_t05", include_str!("../../assets/gait/wbds01_treadmill_t05.csv"), 1.0633),
+    ("wbds01_treadmill_t06", include_str!("../../assets/gait/wbds01_treadmill_t06.csv"), 1.0067),
+    ("wbds02_treadmill_t03", include_str!("../../assets/gait/wbds02_treadmill_t03.csv"), 1.21),
+    ("wbds02_treadmill_t05", include_str!("../../assets/gait/wbds02_treadmill_t05.csv"), 1.01),
+    ("wbds02_treadmill_t06", include_str!("../../assets/gait/wbds02_treadmill_t06.csv"), 0.94),
 ];
 
 /// A truncated Fourier series `c0 + sum_k (a_k cos(k w x) + b_k sin(k w x))`, w = 2 pi / period,
@@ -53,6 +62,11 @@ impl FourierSeries {
             b: (0..harmonics).map(|k| c[2 + 2 * k]).collect(),
             w,
         }
+    }
+
+    /// The mean over a period (the constant term).
+    pub fn mean(&self) -> f64 {
+        self.c0
     }
 
     /// Value and first and second derivatives at `x`.
@@ -153,14 +167,16 @@ impl CycleTable {
 
 /// Optional columns of a gait CSV, with the check each value must pass: angles in degrees
 /// (|v| <= 360, fitted), moments in N m/kg (|v| <= 20) and ground reaction in N/kg
-/// (-5..=50), tabulated.
-pub const OPTIONAL_GAIT_COLUMNS: [(&str, f64, f64); 6] = [
+/// (-5..=50), tabulated; the pelvis's anterior tilt to the vertical in degrees (-90..=90,
+/// fitted).
+pub const OPTIONAL_GAIT_COLUMNS: [(&str, f64, f64); 7] = [
     ("hip_flexion_deg", -360.0, 360.0),
     ("ankle_dorsiflexion_deg", -360.0, 360.0),
     ("hip_moment_nm_per_kg", -20.0, 20.0),
     ("knee_moment_nm_per_kg", -20.0, 20.0),
     ("ankle_moment_nm_per_kg", -20.0, 20.0),
     ("grf_vertical_n_per_kg", -5.0, 50.0),
+    ("pelvis_tilt_deg", -90.0, 90.0),
 ];
 
 /// One gait cycle read from a CSV: knee (and optionally hip and ankle) angle against % of the
@@ -173,6 +189,8 @@ pub struct GaitCycle {
     pub hip: Option<FourierSeries>,
     /// Ankle dorsiflexion (rad, dorsiflexion positive), if the file has it.
     pub ankle: Option<FourierSeries>,
+    /// Pelvis tilt to the vertical (rad, anterior positive), if the file has it.
+    pub pelvis_tilt: Option<FourierSeries>,
     /// Tabulated kinetics by column name (`hip_moment_nm_per_kg`, `knee_moment_nm_per_kg`,
     /// `ankle_moment_nm_per_kg`: net internal moments, hip flexor, knee extensor, ankle
     /// plantarflexor positive; `grf_vertical_n_per_kg`: up positive), those the file has.
@@ -258,12 +276,13 @@ impl GaitCycle {
         let fit = |v: &[f64]| FourierSeries::fit(&pct, v, 100.0, harmonics);
         let angle = |n: &str| optional.iter().find(|c| c.0 == n).map(|c| fit(&c.1));
         let (hip, ankle) = (angle("hip_flexion_deg"), angle("ankle_dorsiflexion_deg"));
+        let pelvis_tilt = angle("pelvis_tilt_deg");
         let kinetics = optional
             .iter()
             .filter(|c| !c.0.ends_with("_deg"))
             .map(|c| (c.0, CycleTable { pct: pct.clone(), values: c.1.clone() }))
             .collect();
-        Ok(GaitCycle { knee: fit(&knee), hip, ankle, kinetics, rows })
+        Ok(GaitCycle { knee: fit(&knee), hip, ankle, pelvis_tilt, kinetics, rows })
     }
 
     /// A kinetics column by name, if the file has it.
@@ -313,6 +332,12 @@ impl GaitReference {
     /// ankle column).
     pub fn ankle_at(&self, t_s: f64) -> RefSample {
         self.cycle.ankle.as_ref().map_or(RefSample::default(), |a| self.sample(a, t_s))
+    }
+
+    /// Pelvis tilt (rad, anterior positive) and its time derivatives at `t_s`, if the file has
+    /// a `pelvis_tilt_deg` column.
+    pub fn pelvis_tilt_at(&self, t_s: f64) -> Option<RefSample> {
+        self.cycle.pelvis_tilt.as_ref().map(|p| self.sample(p, t_s))
     }
 
     /// Hip flexion (rad) and its time derivatives at `t_s` (zero if the file has no hip column).

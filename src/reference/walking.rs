@@ -10,14 +10,16 @@
 //! - The pelvis height the data imply: the hip sits as high above the ground as the feet on
 //!   the ground reach (from the angles and the URDF's sole shapes), each foot weighted by the
 //!   vertical load it carries in the data, smoothed by a Fourier fit.
-//! - The belt speed the stance implies: how fast the ankle moves backwards relative to the hip
-//!   between heel strike and toe-off.
+//! - The belt speed the stance implies: how fast the sole point on the ground (the heel, then
+//!   the ball) moves backwards relative to the hip between heel strike and toe-off.
 //! - A stance weight in [0, 1]: 1 in this leg's stance, 0 in swing, with raised-cosine
 //!   transitions [`STANCE_BLEND_PCT`] wide centred on heel strike and toe-off.
 
 use super::{CycleTable, FourierSeries, GaitReference, RefSample};
-use crate::leg::{foot_points_at, LegSpec};
+use crate::leg::{foot_points_at, sole_points_at, LegSpec};
 
+/// Slices of the stance in which the sole's sweep is summed.
+const SWEEP_STEPS: usize = 200;
 /// Samples of the data-implied pelvis height over one cycle.
 const PELVIS_SAMPLES: usize = 400;
 /// Harmonics of the fit of the data-implied pelvis height.
@@ -57,6 +59,37 @@ pub struct WalkingSample {
     pub stance_weight: f64,
 }
 
+/// Pelvic tilt assumed when neither the scenario nor the gait data give one (deg).
+pub const DEFAULT_PELVIC_TILT_DEG: f64 = 10.0;
+
+/// Where the pelvic tilt of a walking run comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PelvicTilt {
+    /// A constant (rad): `hip.pelvic_tilt_deg`, or [`DEFAULT_PELVIC_TILT_DEG`] when the data
+    /// have no tilt column (`from_scenario` false).
+    Constant { rad: f64, from_scenario: bool },
+    /// The data's `pelvis_tilt_deg` column over the cycle (its mean in rad, for reports).
+    Data { mean_rad: f64 },
+}
+
+impl PelvicTilt {
+    /// What a run assumed, in words (for `summary.json`).
+    pub fn describe(&self) -> String {
+        match self {
+            PelvicTilt::Constant { rad, from_scenario: true } => {
+                format!("constant {:.2} deg (hip.pelvic_tilt_deg)", rad.to_degrees())
+            }
+            PelvicTilt::Constant { rad, from_scenario: false } => format!(
+                "constant {:.2} deg (the default: the gait data have no pelvis_tilt_deg column)",
+                rad.to_degrees()
+            ),
+            PelvicTilt::Data { mean_rad } => {
+                format!("the gait data's pelvis_tilt_deg over the cycle (mean {:.2} deg)", mean_rad.to_degrees())
+            }
+        }
+    }
+}
+
 /// The gait data of a loaded-walking run, resolved against a leg.
 #[derive(Debug, Clone)]
 pub struct WalkingData {
@@ -64,10 +97,10 @@ pub struct WalkingData {
     pub gait: GaitReference,
     /// Subject mass the moments and the ground reaction are scaled with (kg).
     pub subject_mass_kg: f64,
-    /// Anterior pelvic tilt (rad): the data's hip flexion is the thigh's angle to the pelvis;
-    /// the thigh's angle to the vertical, which the carriage's upright pelvis sets, is the hip
-    /// flexion minus this.
-    pub pelvic_tilt_rad: f64,
+    /// Anterior pelvic tilt: the data's hip flexion is the thigh's angle to the pelvis; the
+    /// thigh's angle to the vertical, which the carriage's upright pelvis sets, is the hip
+    /// flexion minus the tilt.
+    pub pelvic_tilt: PelvicTilt,
     hip_moment: CycleTable,
     knee_moment: CycleTable,
     ankle_moment: CycleTable,
@@ -84,12 +117,14 @@ pub struct WalkingData {
 
 impl WalkingData {
     /// Read the walking data off `gait` for `model` (whose ankle moves) and a subject of
-    /// `subject_mass_kg`. Errors name the missing column or the geometric problem.
+    /// `subject_mass_kg`, with a constant pelvic tilt (rad) or, without one, the data's own
+    /// tilt column (else [`DEFAULT_PELVIC_TILT_DEG`]). Errors name the missing column or the
+    /// geometric problem.
     pub fn new(
         gait: GaitReference,
         model: &LegSpec,
         subject_mass_kg: f64,
-        pelvic_tilt_rad: f64,
+        pelvic_tilt_rad: Option<f64>,
     ) -> Result<Self, String> {
         let c = &gait.cycle;
         let need = |n: &str| c.kinetic(n).cloned().ok_or_else(|| format!("the gait data have no `{n}` column"));
@@ -98,6 +133,11 @@ impl WalkingData {
         }
         let grf = need("grf_vertical_n_per_kg")?;
         let stance_pct = stance_window(&grf)?;
+        let pelvic_tilt = match (pelvic_tilt_rad, &c.pelvis_tilt) {
+            (Some(rad), _) => PelvicTilt::Constant { rad, from_scenario: true },
+            (None, Some(series)) => PelvicTilt::Data { mean_rad: series.mean() },
+            (None, None) => PelvicTilt::Constant { rad: DEFAULT_PELVIC_TILT_DEG.to_radians(), from_scenario: false },
+        };
         let mut w = WalkingData {
             hip_moment: need("hip_moment_nm_per_kg")?,
             knee_moment: need("knee_moment_nm_per_kg")?,
@@ -105,7 +145,7 @@ impl WalkingData {
             grf,
             gait,
             subject_mass_kg,
-            pelvic_tilt_rad,
+            pelvic_tilt,
             pelvis: FourierSeries::fit(&[0.0, 50.0, 25.0], &[0.0; 3], 100.0, 1),
             stance_pct,
             belt_speed_m_s: 0.0,
@@ -135,16 +175,49 @@ impl WalkingData {
         let pelvis = FourierSeries::fit(&pcts, &pelvis, 100.0, PELVIS_HARMONICS);
         let (hs, to) = stance_pct;
         let stance_s = ((to - hs).rem_euclid(100.0)) / 100.0 * w.gait.stride_s;
-        let belt = (depth(hs)?.1 - depth(to)?.1) / stance_s;
+        let belt = w.stance_sweep_m(model)? / stance_s;
         (w.pelvis, w.belt_speed_m_s) = (pelvis, belt);
         Ok(w)
     }
 
+    /// How far the sole travels backwards under the hip over the stance (m): in
+    /// [`SWEEP_STEPS`] slices from heel strike to toe-off, the motion of the sole point that is
+    /// lowest at the start of each slice (the heel, then the ball: the point the belt holds).
+    fn stance_sweep_m(&self, model: &LegSpec) -> Result<f64, String> {
+        let (hs, to) = self.stance_pct;
+        let len = (to - hs).rem_euclid(100.0);
+        let points = |pct: f64| {
+            let t = pct / 100.0 * self.gait.stride_s;
+            let (h, k, a) = (self.thigh_at(t).value, self.gait.knee_at(t).value, self.gait.ankle_at(t).value);
+            sole_points_at(model, h, k, a)
+                .map(|p| p.1)
+                .filter(|p| !p.is_empty())
+                .ok_or_else(|| format!("the leg cannot take the data's pose at {pct:.1} % (loop or soles)"))
+        };
+        let mut sweep = 0.0;
+        let mut now = points(hs)?;
+        for j in 1..=SWEEP_STEPS {
+            let next = points(hs + len * j as f64 / SWEEP_STEPS as f64)?;
+            let i = (0..now.len()).fold(0, |b, i| if now[i].z < now[b].z { i } else { b });
+            sweep += now[i].x - next[i].x;
+            now = next;
+        }
+        Ok(sweep)
+    }
+
     /// The thigh's angle to the vertical (rad, forward positive): hip flexion minus the
-    /// pelvic tilt.
+    /// pelvic tilt (and its rates, when it is the data's).
     fn thigh_at(&self, t_s: f64) -> RefSample {
         let mut h = self.gait.hip_at(t_s);
-        h.value -= self.pelvic_tilt_rad;
+        match self.pelvic_tilt {
+            PelvicTilt::Constant { rad, .. } => h.value -= rad,
+            PelvicTilt::Data { .. } => {
+                let p = self.gait.pelvis_tilt_at(t_s).unwrap_or_default();
+                h.value -= p.value;
+                h.rate -= p.rate;
+                h.accel -= p.accel;
+            }
+        }
         h
     }
 
@@ -190,6 +263,11 @@ impl WalkingData {
             pelvis_rate_m_s: rate_per_pct * 100.0 / self.gait.stride_s,
             stance_weight: self.stance_weight_at_pct(pct),
         }
+    }
+
+    /// The lowest hip height over the cycle the data imply (m).
+    pub fn lowest_pelvis_height_m(&self) -> f64 {
+        (0..200).map(|i| self.pelvis.eval(i as f64 * 0.5).0).fold(f64::INFINITY, f64::min)
     }
 
     /// The dataset's vertical ground reaction of this leg at `pct` (N).
@@ -241,7 +319,7 @@ mod tests {
         let gait = GaitReference { cycle, stride_s: stride, source: trial.into(), sha256: String::new() };
         let text = crate::leg::BUILTIN_URDFS[0].1;
         let model = LegSpec::from_urdf_with(text, &LegOptions { ankle_free: true, ..Default::default() }).unwrap();
-        WalkingData::new(gait, &model, 75.0, 10f64.to_radians()).unwrap()
+        WalkingData::new(gait, &model, 75.0, Some(10f64.to_radians())).unwrap()
     }
 
     #[test]

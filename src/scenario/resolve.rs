@@ -283,20 +283,35 @@ impl Ctx<'_> {
 
     /// The walking data of a gait on the carriage (cached per gait, leg and subject).
     fn walking(&mut self, gait: &GaitReference, model: &Arc<LegSpec>) -> Result<Arc<WalkingData>> {
-        let (subject, tilt) = (self.s.file.hip.subject_mass_kg, self.s.file.hip.pelvic_tilt_deg.to_radians());
+        let (subject, tilt) = (self.s.file.hip.subject_mass_kg, self.s.file.hip.pelvic_tilt_deg.map(f64::to_radians));
         let key = format!(
-            "{}|{}|{}|{}|{:p}",
+            "{}|{}|{}|{:?}|{:p}",
             gait.sha256,
             gait.stride_s.to_bits(),
             subject.to_bits(),
-            tilt.to_bits(),
+            tilt.map(f64::to_bits),
             Arc::as_ptr(model)
         );
         let src = self.src().to_string();
-        self.res.walking(key, || {
+        let w = self.res.walking(key, || {
             WalkingData::new(gait.clone(), model, subject, tilt)
                 .map_err(|m| Error::input(&src, format!("reference.gait ({})", gait.source), m))
-        })
+        })?;
+        if let Some(v) = self.s.file.ground.belt_speed_m_s.filter(|_| self.s.file.ground.enabled) {
+            let sweep = w.belt_speed_m_s;
+            let off = v / sweep - 1.0;
+            let msg = format!(
+                "ground.belt_speed_m_s = {v} m/s and the speed the leg's stance sweeps at this stride time ({sweep:.3} \
+                 m/s) differ by {:+.0} %: the belt will {} the stance foot (set the subject's height and the \
+                 stride time, or leave the belt speed unset)",
+                100.0 * off,
+                if off > 0.0 { "drag back" } else { "push forward" }
+            );
+            if off.abs() > BELT_MISMATCH_WARNING && !self.warnings.contains(&msg) {
+                self.warnings.push(msg);
+            }
+        }
+        Ok(w)
     }
 }
 
@@ -368,6 +383,9 @@ fn leg_start(s: &Scenario, model: &LegSpec, reference: &ForceReference) -> Resul
     let hip: Option<RefSample> = reference.hip_at(0.0);
     Ok((LegStart { knee_rad: q0, knee_rate_rad_s: qd0, hip }, on_trajectory))
 }
+
+/// A belt speed further than this (relative) from the leg's stance sweep gets a warning.
+pub const BELT_MISMATCH_WARNING: f64 = 0.10;
 
 /// The leg plant's setup: start, cuff, and with contact the ground and the body.
 fn leg_setup(
@@ -466,6 +484,11 @@ fn body_setup(
         belt_speed_m_s,
         contact_frequency_hz: g.contact_frequency_hz,
         contact_damping_ratio: g.contact_damping_ratio,
+        compliant: (g.contact == crate::plant::ContactLaw::Compliant).then_some(crate::leg::CompliantContact {
+            modulus_pa: g.contact_modulus_pa,
+            dissipation_s_per_m: g.contact_dissipation_s_per_m,
+            friction_stiffness_n_per_m: g.friction_stiffness_n_per_m,
+        }),
     };
     let Some(targets) = targets else { return Ok((Some(ground), None)) };
     let pelvis_mass_kg = f.hip.body_mass_kg.unwrap_or(f.hip.subject_mass_kg - model.leg_mass_kg());

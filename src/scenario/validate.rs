@@ -398,7 +398,9 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
         c.range(k, v, 0.0, 1e7)?;
     }
     c.range("hip.moment_share", h.moment_share, 0.0, 1.0)?;
-    c.range("hip.pelvic_tilt_deg", h.pelvic_tilt_deg, -30.0, 45.0)?;
+    if let Some(t) = h.pelvic_tilt_deg {
+        c.range("hip.pelvic_tilt_deg", t, -30.0, 45.0)?;
+    }
     c.range("wearer.knee_moment_share", f.wearer.knee_moment_share, 0.0, 1.0)?;
     c.range("wearer.ankle_moment_share", f.wearer.ankle_moment_share, 0.0, 1.0)?;
     if let Some(s) = h.other_leg_share {
@@ -409,6 +411,9 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
     c.range("ground.friction", g.friction, 0.0, 5.0)?;
     c.range("ground.contact_damping_ratio", g.contact_damping_ratio, 0.0, 20.0)?;
     c.range("ground.contact_frequency_hz", g.contact_frequency_hz, 1.0, 1000.0)?;
+    c.range("ground.contact_modulus_pa", g.contact_modulus_pa, 1e4, 1e11)?;
+    c.range("ground.contact_dissipation_s_per_m", g.contact_dissipation_s_per_m, 0.0, 50.0)?;
+    c.range("ground.friction_stiffness_n_per_m", g.friction_stiffness_n_per_m, 1e3, 1e8)?;
     if let Some(v) = g.belt_speed_m_s {
         c.range("ground.belt_speed_m_s", v, -10.0, 10.0)?;
     }

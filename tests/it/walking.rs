@@ -24,10 +24,11 @@ fn standing(knee_deg: f64) {
     // Measured (20 / 40 deg): GRF = supported weight to -1.4e-8 / -4.0e-9 (376.37 / 376.31 N);
     // cylinder 345.5 / 541.4 N against the balance within -0.69 / -0.43 % (the rod's and
     // barrel's weight and the joint damping are inside the lab moment, not in F * dL/dq);
-    // penetration 0.15 / 0.05 mm; the knee at the pose to 3e-6 deg.
+    // the knee at the pose to 3e-6 deg. Penetration 5.13 mm: the compliant sole's heel and
+    // ball spheres under the supported weight (0.15 / 0.05 mm with ground.contact = "rigid").
     assert!(grf_err.abs() < 5e-8, "{knee_deg}: GRF {} vs supported {supported}", c.ground_reaction_vertical_n);
     assert!(cyl_err.abs() < 0.01, "{knee_deg}: cylinder {} vs balance {balance_n}", last.cylinder_force_n);
-    assert!(c.contact_penetration_m < 5e-4, "{knee_deg}: penetration {}", c.contact_penetration_m);
+    assert!(c.contact_penetration_m < 0.012, "{knee_deg}: penetration {}", c.contact_penetration_m);
     assert!((l.knee_angle_deg - knee_deg).abs() < 1e-3, "{knee_deg}: knee {}", l.knee_angle_deg);
     assert!(c.knee_moment_nm > 0.0, "a standing knee needs an extensor moment");
 }
@@ -48,14 +49,23 @@ fn loaded_walking_reproduces_the_stance_and_ground_reaction_of_the_data() {
     let s = &out.summary;
     let c = s.contact.as_ref().expect("contact figures");
     let d = c.dataset.as_ref().expect("dataset comparison");
-    // Measured (dtznn, assist 0, belt 1.21 m/s, hip 500 N m/rad / 30 N m s/rad): stance 0.550
-    // of the stride; vertical GRF correlation 0.950, peak 1.24x the data's; stance knee moment
-    // correlation 0.792, extensor peak 29.3 N m at 14.5 % (data 29.8 at 12.5 %), flexor peak
-    // -39.0 N m at 47.5 % (data -29.5 at 41.5 %); knee RMS 1.23 deg in stance, 0.82 in swing;
-    // force RMS 42.7 N in stance, 15.7 N in swing. The limits are the acceptance.
+    // Measured (dtznn, assist 0, belt 1.21 m/s, hip 500 N m/rad / 30 N m s/rad, the compliant
+    // sole, tilt 10 deg): stance 0.553 of the stride; vertical GRF correlation 0.934, peak 1.33x
+    // the data's (10 Hz); unfiltered peak 1215 N (the rigid sole gave 25.97 kN), 1.57x the
+    // data's 772 N; penetration 12.6 mm (the heel pad); stance knee moment correlation 0.735,
+    // extensor peak 40.7 N m at 14.5 % (data 29.8 at 12.5 %), flexor peak -30.7 N m at 47.5 %
+    // (data -29.5 at 41.5 %); knee RMS 1.14 deg in stance, 0.76 in swing; force RMS 0.98 N in
+    // stance, 15.7 N in swing; walking (no flags). The limits are the issues' acceptance.
     assert!((0.45..=0.70).contains(&c.stance_fraction), "stance {}", c.stance_fraction);
     assert!(d.grf_correlation >= 0.8 && d.grf_peak_ratio <= 1.5, "GRF {} x{}", d.grf_correlation, d.grf_peak_ratio);
-    assert!(c.max_contact_penetration_m < 4e-3, "penetration {}", c.max_contact_penetration_m);
+    assert!(
+        c.peak_ground_reaction_n < 2.0 * d.data_peak_ground_reaction_n,
+        "unfiltered peak {} vs the data's {}",
+        c.peak_ground_reaction_n,
+        d.data_peak_ground_reaction_n
+    );
+    assert!(c.not_walking.is_empty(), "{:?}", c.not_walking);
+    assert!(c.max_contact_penetration_m < 0.025, "penetration {}", c.max_contact_penetration_m);
     assert!((d.strides_averaged - 5.0).abs() < 0.01, "strides {}", d.strides_averaged);
     let (ks, kw) = (c.knee_rms_error_stance_deg.unwrap(), c.knee_rms_error_swing_deg.unwrap());
     assert!(ks < 3.0 && kw < 2.0, "knee RMS stance {ks} swing {kw}");
@@ -144,4 +154,65 @@ fn bad_walking_input_exits_2_naming_the_key() {
         assert!(err.contains(key), "{args:?}: {err}");
         assert!(!dir.path().join("o").exists(), "{args:?} wrote output");
     }
+}
+
+/// A run made to fail is flagged as not walking, on the CLI and in `summary.json`, and
+/// `criteria.max_not_walking_flags = 0` fails it (exit 4); the same criterion passes a run
+/// that walks. The belt 40 % too fast and the pelvic tilt 10 deg above the data's both
+/// collapse the leg onto the belt.
+#[test]
+fn a_run_that_is_not_walking_says_so() {
+    let run = |sets: &[&str]| {
+        let dir = tempfile::tempdir().unwrap();
+        let mut cmd = std::process::Command::new(exe());
+        cmd.args(["run", "--quiet", "assets/scenarios/gait_treadmill.toml", "--out"]).arg(dir.path().join("o"));
+        for s in sets.iter().chain(&["criteria.max_not_walking_flags=0"]) {
+            cmd.args(["--set", s]);
+        }
+        let o = cmd.current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap();
+        let summary: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("o/summary.json")).unwrap()).unwrap();
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).to_string(), summary)
+    };
+    // Measured: belt 1.7 m/s (the leg sweeps 1.22): the leg still steps (stance 0.52) but is
+    // dragged, the mean horizontal reaction -9.6 % of the vertical (stance knee moment
+    // correlation 0.21); tilt 24 deg (the data's 14 + 10): a collapse, stance 0.95, the pelvis
+    // down to 0.15 m of the data's lowest 0.84 m, the horizontal reaction -45 %, the foot on
+    // the belt through 4 of the 5 strides.
+    let cases: [(&[&str], &str); 2] =
+        [(&["ground.belt_speed_m_s=1.7"], "belt drags"), (&["hip.pelvic_tilt_deg=24.0"], "on the ground")];
+    for (sets, why) in cases {
+        let (code, err, s) = run(sets);
+        assert_eq!(code, Some(4), "{sets:?}: {err}");
+        assert!(err.contains("warning: this run is not walking"), "{sets:?}: {err}");
+        let flags = s["not_walking"].as_array().unwrap();
+        assert!(flags.iter().any(|f| f.as_str().unwrap().contains(why)), "{sets:?}: {flags:?}");
+    }
+    let (code, err, s) = run(&[]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(s["not_walking"].as_array().unwrap().len(), 0);
+    assert!(s["pelvic_tilt"].as_str().unwrap().contains("hip.pelvic_tilt_deg"));
+}
+
+/// Without `hip.pelvic_tilt_deg` a run takes the data's pelvis tilt and says so; a belt far
+/// from the leg's stance sweep gets a warning naming both speeds, one within 10 % none.
+#[test]
+fn the_data_tilt_is_used_and_a_mismatched_belt_is_warned() {
+    let mut s =
+        shipped("gait_treadmill.toml", &["reference.gait_trial=\"wbds01_treadmill_t05\"", "hip.subject_mass_kg=74.3"]);
+    s.file.hip.pelvic_tilt_deg = None;
+    let sc = s.resolve(&Resources::new()).unwrap();
+    // Measured: subject 01's T05 stance sweeps at 1.15 m/s on exo_leg at 1.0633 s per stride,
+    // 5 % under the belt's 1.21.
+    assert!(!sc.warnings.iter().any(|w| w.contains("ground.belt_speed_m_s")), "{:?}", sc.warnings);
+    let out = run_scenario(&s).unwrap();
+    let c = out.summary.contact.unwrap();
+    let tilt = c.pelvic_tilt.unwrap();
+    assert!(tilt.contains("pelvis_tilt_deg over the cycle (mean 13.7"), "{tilt}");
+    let mut fast =
+        shipped("gait_treadmill.toml", &["reference.gait_trial=\"wbds01_treadmill_t05\"", "ground.belt_speed_m_s=1.5"]);
+    fast.file.hip.pelvic_tilt_deg = None;
+    let sc = fast.resolve(&Resources::new()).unwrap();
+    let w = sc.warnings.iter().find(|w| w.contains("ground.belt_speed_m_s = 1.5 m/s")).expect("a belt warning");
+    assert!(w.contains("differ by +") && w.contains("drag back"), "{w}");
 }

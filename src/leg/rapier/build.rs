@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::leg::error::LegError;
-use crate::leg::ground::{insert_ground, Belt, ContactReading, GroundConfig};
+use crate::leg::ground::{insert_ground, ContactReading, GroundConfig};
 use crate::leg::model::{JointKind, JointSpec, LegSpec, GRAVITY_M_S2};
 use crate::leg::pose::{joint_origin_pose, pose_of};
 use rapier3d_f64::glamx::{DQuat, DVec3};
@@ -38,7 +38,7 @@ fn new_world(dt_s: f64, params: LegSolverParams, ground: Option<&GroundConfig>) 
         num_internal_pgs_iterations: params.pgs_iterations,
         ..IntegrationParameters::default()
     };
-    if let Some(g) = ground {
+    if let Some(g) = ground.filter(|g| g.compliant.is_none()) {
         let soft = SpringCoefficients::new(g.contact_frequency_hz, g.contact_damping_ratio);
         world.integration_parameters.contact_softness = soft;
         world.integration_parameters.static_contact_softness = soft;
@@ -411,10 +411,7 @@ impl Leg {
         insert_joints(&mut world, model, &welds, &link_body)?;
         let (closure, anchor1, anchor2, rod_anchor_is_1) = insert_closure(&mut world, model, &welds, &link_body);
         let belt = match ground {
-            Some(g) => Some(Belt {
-                ground: insert_ground(&mut world, model, &link_body, &welds.offset, g)?,
-                speed_m_s: g.belt_speed_m_s,
-            }),
+            Some(g) => Some(insert_ground(&mut world, model, &link_body, &welds.offset, g)?),
             None => None,
         };
         let ids = LinkIds::find(&world, model, &link_body, root.is_some())?;

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::leg::error::LegError;
-use crate::leg::ground::read_contacts;
+use crate::leg::ground::{apply_compliant, read_contacts, Belt};
 use rapier3d_f64::glamx::DVec3;
 
 impl Leg {
@@ -88,13 +88,20 @@ impl Leg {
             self.world.bodies[self.link_body[shank]].add_force_at_point(DVec3::from(f), pw, true);
         }
         self.apply_walking_forces(forces);
+        let dt = self.dt_s();
+        let compliant = match &mut self.ground {
+            Some(Belt { compliant: Some(c), speed_m_s, .. }) => {
+                Some(apply_compliant(&mut self.world, &self.link_body, c, *speed_m_s, dt))
+            }
+            _ => None,
+        };
         match &self.ground {
-            Some(belt) => self.world.step_with_events(belt, &()),
-            None => self.world.step(),
+            Some(belt) if belt.compliant.is_none() => self.world.step_with_events(belt, &()),
+            _ => self.world.step(),
         }
         self.pins = self.pins_now();
         if let Some(belt) = &self.ground {
-            self.contact = read_contacts(&self.world, belt.ground, self.dt_s());
+            self.contact = compliant.unwrap_or_else(|| read_contacts(&self.world, belt.ground, dt));
             self.update_lab_knee_moment();
         }
         if let Some(h) = &mut self.hip {
