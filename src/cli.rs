@@ -131,6 +131,25 @@ pub enum Command {
         #[arg(long, conflicts_with_all = ["scenario", "plant"])]
         firmware: bool,
     },
+    /// Write the built-in leg scaled to a subject as a URDF (what `[subject]` runs), to look
+    /// at or to edit and use as `leg.urdf`.
+    Urdf {
+        /// Body mass (kg).
+        #[arg(long)]
+        mass_kg: f64,
+        /// Stature (m).
+        #[arg(long)]
+        height_m: f64,
+        /// Hip joint centre to floor (m), if measured.
+        #[arg(long)]
+        leg_length_m: Option<f64>,
+        /// `male` or `female`.
+        #[arg(long, default_value = "male")]
+        sex: String,
+        /// The URDF file to write (`-`: standard output).
+        #[arg(long, default_value = "-")]
+        out: PathBuf,
+    },
     /// Package a scenario's plant as an FMI 2.0 co-simulation FMU for Simulink, OpenModelica,
     /// FMPy or any FMI master: everything but the controller (the master reads the sensor
     /// readings and sets the valve command at every sample instant).
@@ -367,6 +386,27 @@ fn cmd_firmware(json: Option<PathBuf>, sets: Vec<String>) -> Result<i32> {
     Ok(EXIT_OK)
 }
 
+/// `exoleg urdf`: the subject goes through the scenario's own checks.
+fn cmd_urdf(mass_kg: f64, height_m: f64, leg_length_m: Option<f64>, sex: String, out: PathBuf) -> Result<i32> {
+    let sex_toml = toml::Value::String(sex).to_string();
+    let mut sets = vec![format!("subject={{mass_kg={mass_kg:?}, height_m={height_m:?}, sex={sex_toml}}}")];
+    if let Some(l) = leg_length_m {
+        sets.push(format!("subject.leg_length_m={l:?}"));
+    }
+    let sc = Scenario::load(None, &sets)?;
+    let subject = sc.file.subject.as_ref().ok_or_else(|| Error::Usage("no subject".into()))?;
+    let text = crate::leg::subject::scaled_urdf(&subject.body());
+    crate::leg::LegSpec::from_urdf_with(&text, &crate::leg::LegOptions::default())
+        .map_err(|e| Error::input("exoleg urdf", "--height-m", format!("the scaled leg does not build: {e}")))?;
+    if out.as_os_str() == "-" {
+        print!("{text}");
+    } else {
+        output::write_atomic(&out, text.as_bytes())?;
+        eprintln!("wrote {}", out.display());
+    }
+    Ok(EXIT_OK)
+}
+
 /// `exoleg fmu`.
 fn cmd_fmu(scenario: Option<PathBuf>, sets: Vec<String>, out: PathBuf, library: Option<PathBuf>) -> Result<i32> {
     let resolved = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
@@ -418,5 +458,8 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Compare { firmware: true, json, sets, .. } => cmd_firmware(json, sets),
         Command::Compare { scenario, plant, json, sets, .. } => cmd_compare(scenario, plant, json, sets),
         Command::Fmu { scenario, sets, out, library } => cmd_fmu(scenario, sets, out, library),
+        Command::Urdf { mass_kg, height_m, leg_length_m, sex, out } => {
+            cmd_urdf(mass_kg, height_m, leg_length_m, sex, out)
+        }
     }
 }

@@ -48,9 +48,9 @@ impl HipMode {
 pub struct HipParams {
     /// `fixed`, `driven` or `carriage`. Default: `driven` for gait references, else `fixed`.
     pub mode: Option<HipMode>,
-    /// The subject's mass (kg): scales the data's moments and ground reaction. Default 75
-    /// (the built-in URDFs' male subject). > 0.
-    pub subject_mass_kg: f64,
+    /// The subject's mass (kg): scales the data's moments and ground reaction. Default
+    /// `subject.mass_kg`, else 75 (the built-in URDFs' male subject). 2..=650.
+    pub subject_mass_kg: Option<f64>,
     /// Mass the pelvis carries (kg): the trunk, arms, head and the other leg. Default: the
     /// subject's mass minus this leg's (URDF links other than the cylinder). > 0.
     pub body_mass_kg: Option<f64>,
@@ -98,11 +98,22 @@ pub struct HipParams {
     pub initial_clearance_m: f64,
 }
 
+/// The subject's mass when neither `hip.subject_mass_kg` nor `subject.mass_kg` gives it (kg).
+pub const DEFAULT_SUBJECT_MASS_KG: f64 = 75.0;
+
+impl HipParams {
+    /// The subject's mass (kg): `subject_mass_kg` (the scenario fills it from `[subject]` at
+    /// resolve), else [`DEFAULT_SUBJECT_MASS_KG`].
+    pub fn subject_mass(&self) -> f64 {
+        self.subject_mass_kg.unwrap_or(DEFAULT_SUBJECT_MASS_KG)
+    }
+}
+
 impl Default for HipParams {
     fn default() -> Self {
         Self {
             mode: None,
-            subject_mass_kg: 75.0,
+            subject_mass_kg: None,
             body_mass_kg: None,
             pelvic_tilt_deg: None,
             stiffness_nm_per_rad: 500.0,
@@ -198,7 +209,7 @@ pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s:
     };
     let share = hip.other_leg_share.unwrap_or(d.other_share);
     let base = match hip.support_force {
-        SupportForce::Weight => share * hip.subject_mass_kg * crate::leg::model::GRAVITY_M_S2,
+        SupportForce::Weight => share * hip.subject_mass() * crate::leg::model::GRAVITY_M_S2,
         SupportForce::Data => d.grf_other_n,
     };
     let support = base

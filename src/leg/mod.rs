@@ -24,6 +24,7 @@ pub mod pose;
 pub mod rapier;
 pub mod reduced;
 pub mod stops;
+pub mod subject;
 pub mod urdf;
 
 pub use error::LegError;

@@ -214,6 +214,42 @@ pub struct ScenarioFile {
     pub metrics: MetricsSection,
     /// Pass/fail criteria.
     pub criteria: Criteria,
+    /// The wearer's body: scales the built-in leg and sets the subject's mass.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub subject: Option<SubjectParams>,
+}
+
+/// `[subject]`: the wearer. With a built-in `leg.urdf` the leg is the built-in one scaled to
+/// the subject (`exoleg urdf --subject` writes it; README, "Loaded walking for any subject"):
+/// de Leva's segments for the stature (and leg length), the exoskeleton of the subject's sex
+/// scaled with the thigh. A user's URDF is used as given (a warning says so). The mass is
+/// `hip.subject_mass_kg` unless that is set too.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SubjectParams {
+    /// Body mass (kg). 20..=300.
+    pub mass_kg: f64,
+    /// Stature (m). 1.0..=2.3.
+    pub height_m: f64,
+    /// Hip joint centre to floor (m), if measured (e.g. WBDS's leg length); else de Leva's
+    /// segments for the stature. 0.35..=0.65 of the stature.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub leg_length_m: Option<f64>,
+    /// `"male"` (default) or `"female"`: de Leva's table and the exoskeleton template.
+    #[serde(default)]
+    pub sex: crate::leg::subject::Sex,
+}
+
+impl SubjectParams {
+    /// As the leg generator takes it.
+    pub fn body(&self) -> crate::leg::subject::SubjectBody {
+        crate::leg::subject::SubjectBody {
+            mass_kg: self.mass_kg,
+            height_m: self.height_m,
+            leg_length_m: self.leg_length_m,
+            sex: self.sex,
+        }
+    }
 }
 
 impl Default for ScenarioFile {
@@ -237,6 +273,7 @@ impl Default for ScenarioFile {
             wearer: WearerParams::default(),
             metrics: MetricsSection::default(),
             criteria: Criteria::default(),
+            subject: None,
         }
     }
 }

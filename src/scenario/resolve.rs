@@ -110,7 +110,25 @@ impl Ctx<'_> {
         recorded: &Option<String>,
         options: &LegOptions,
     ) -> Result<(Arc<crate::scenario::files::LoadedLeg>, InputText)> {
-        let text = self.res.urdf_text(self.src(), key, urdf, self.s.base_dir.as_deref())?;
+        let mut text = self.res.urdf_text(self.src(), key, urdf, self.s.base_dir.as_deref())?;
+        if let Some(subject) = &self.s.file.subject {
+            if text.origin.starts_with("builtin:") {
+                let scaled = crate::leg::subject::scaled_urdf(&subject.body());
+                text = InputText {
+                    origin: format!("{} scaled to [subject]", text.origin),
+                    sha256: crate::scenario::files::sha256_hex(scaled.as_bytes()),
+                    text: Arc::from(scaled.as_str()),
+                };
+            } else {
+                let msg = format!(
+                    "{key} is your own URDF: it is used as given ([subject] sets the subject's mass only; it scales \
+                     the built-in legs)"
+                );
+                if !self.warnings.contains(&msg) {
+                    self.warnings.push(msg);
+                }
+            }
+        }
         check_hash(key, &text, recorded, &mut self.warnings);
         let loaded = self.res.leg(&text, options).map_err(|e| {
             Error::input(self.src(), key, format!("{}: {e}", text.origin.trim_start_matches("builtin:")))
@@ -283,7 +301,7 @@ impl Ctx<'_> {
 
     /// The walking data of a gait on the carriage (cached per gait, leg and subject).
     fn walking(&mut self, gait: &GaitReference, model: &Arc<LegSpec>) -> Result<Arc<WalkingData>> {
-        let (subject, tilt) = (self.s.file.hip.subject_mass_kg, self.s.file.hip.pelvic_tilt_deg.map(f64::to_radians));
+        let (subject, tilt) = (self.s.file.hip.subject_mass(), self.s.file.hip.pelvic_tilt_deg.map(f64::to_radians));
         let key = format!(
             "{}|{}|{}|{:?}|{:p}",
             gait.sha256,
@@ -435,7 +453,7 @@ fn pose_targets(s: &Scenario, model: &LegSpec) -> Result<WalkingSample> {
         Error::input(&s.source_name, "reference.knee_deg", "the leg cannot take this pose (loop or soles)")
     })?;
     let share = f.hip.other_leg_share.unwrap_or(0.5);
-    let weight = f.hip.subject_mass_kg * crate::leg::model::GRAVITY_M_S2;
+    let weight = f.hip.subject_mass() * crate::leg::model::GRAVITY_M_S2;
     let at = |v: f64| RefSample { value: v, ..Default::default() };
     Ok(WalkingSample {
         hip: at(h),
@@ -491,14 +509,14 @@ fn body_setup(
         }),
     };
     let Some(targets) = targets else { return Ok((Some(ground), None)) };
-    let pelvis_mass_kg = f.hip.body_mass_kg.unwrap_or(f.hip.subject_mass_kg - model.leg_mass_kg());
+    let pelvis_mass_kg = f.hip.body_mass_kg.unwrap_or(f.hip.subject_mass() - model.leg_mass_kg());
     if pelvis_mass_kg <= 0.0 {
         return Err(Error::input(
             &s.source_name,
             "hip.body_mass_kg",
             format!(
                 "the subject ({} kg) minus this leg ({:.2} kg) leaves {pelvis_mass_kg:.2} kg for the body: must be > 0",
-                f.hip.subject_mass_kg,
+                f.hip.subject_mass(),
                 model.leg_mass_kg()
             ),
         ));
@@ -573,6 +591,14 @@ impl Scenario {
     /// Resolve this validated scenario with shared inputs from `res`. Every input error
     /// (files, leg, gait, cuff) is reported here.
     pub fn resolve(&self, res: &Resources) -> Result<ResolvedScenario> {
+        if let Some(m) =
+            self.file.subject.as_ref().map(|s| s.mass_kg).filter(|_| self.file.hip.subject_mass_kg.is_none())
+        {
+            // The subject's mass is the hip's (kinetics, carried weight), in one place.
+            let mut with_mass = self.clone();
+            with_mass.file.hip.subject_mass_kg = Some(m);
+            return with_mass.resolve(res);
+        }
         let f = &self.file;
         let mut cx = Ctx { s: self, res, file: f.clone(), inputs: Vec::new(), warnings: Vec::new() };
         let leg = match f.plant.kind {

@@ -100,7 +100,25 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     controller(&c, f)?;
     sensors_and_actuator(&c, f)?;
     leg_human_metrics(&c, f)?;
+    subject(&c, f)?;
     walking(&c, f)
+}
+
+/// `[subject]`: plausible body, leg length against stature, no contradicting mass.
+fn subject(c: &Check, f: &ScenarioFile) -> Result<()> {
+    let Some(s) = &f.subject else { return Ok(()) };
+    c.range("subject.mass_kg", s.mass_kg, 20.0, 300.0)?;
+    c.range("subject.height_m", s.height_m, 1.0, 2.3)?;
+    if let Some(l) = s.leg_length_m {
+        c.range("subject.leg_length_m", l, 0.35 * s.height_m, 0.65 * s.height_m)?;
+    }
+    if let Some(m) = f.hip.subject_mass_kg.filter(|m| *m != s.mass_kg) {
+        return Err(c.fail(
+            "hip.subject_mass_kg",
+            format!("{m} kg contradicts subject.mass_kg = {} kg: give the mass once", s.mass_kg),
+        ));
+    }
+    Ok(())
 }
 
 /// `[sim]`: positive step, a whole number of steps, at most [`MAX_STEPS`].
@@ -371,6 +389,13 @@ fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
     if (cr.knee_rms_error_deg.is_some() || cr.knee_max_error_deg.is_some()) && f.reference.kind != ReferenceKind::Gait {
         return Err(c.fail("criteria", "knee criteria need a knee reference (reference.kind = \"gait\")"));
     }
+    let walking = f.reference.kind == ReferenceKind::Gait && f.ground.enabled && f.plant.kind == PlantKind::Leg;
+    if cr.max_not_walking_flags.is_some() && !walking {
+        return Err(c.fail(
+            "criteria.max_not_walking_flags",
+            "needs loaded walking (a gait on the carriage with ground.enabled; hip.mode = \"carriage\")",
+        ));
+    }
     Ok(())
 }
 
@@ -379,7 +404,9 @@ fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
 fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
     let h = &f.hip;
     // People weigh 2-650 kg; what the pelvis carries is the subject less one leg.
-    c.range("hip.subject_mass_kg", h.subject_mass_kg, 2.0, 650.0)?;
+    if let Some(m) = h.subject_mass_kg {
+        c.range("hip.subject_mass_kg", m, 2.0, 650.0)?;
+    }
     if let Some(m) = h.body_mass_kg {
         c.range("hip.body_mass_kg", m, 1.0, 650.0)?;
     }

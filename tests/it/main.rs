@@ -25,6 +25,7 @@ mod paper_tables;
 mod sampled;
 mod shard;
 mod shipped_outputs;
+mod subjects;
 mod validation;
 mod walking;
 mod your_controller;

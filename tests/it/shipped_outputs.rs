@@ -43,7 +43,7 @@ use sha2::{Digest, Sha256};
 use std::path::Path;
 use std::process::Command;
 
-const EXPECTED: [(&str, &str); 9] = [
+const EXPECTED: [(&str, &str); 10] = [
     ("default", "416dfb6adcb0772909ea227e710adef74d9a61767c5b83eb11dcc83ceecdc95c"),
     ("gait_walk", "f8984537bb81d4fb04d600e3221363f2199e2860db967c6510fffe84d41799cf"),
     ("gait_walk_fast", "aafd9bef3d5481baa855617a7c94444cee944f00a36acec354ea7d7ec125e718"),
@@ -54,6 +54,8 @@ const EXPECTED: [(&str, &str); 9] = [
     // Added with issue 12 (loaded walking).
     ("stand", "0fa54853be2e7159331cc2628c89232cf1384a0d337ef2b826edc72141bf0eaf"),
     ("gait_treadmill", "cdb2b481ae01b904c45aa81baa0609cca15d845cdb26f7343c05ccc4c8436d40"),
+    // Added with issue 23 (any subject).
+    ("treadmill_subject", "8a100a019ad35aa7f303cff7272929cc00772e3b6f13f77a82b1f6e1a5cb462e"),
 ];
 
 #[test]

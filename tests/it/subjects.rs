@@ -1,0 +1,136 @@
+//! Loaded walking for any subject (issue 23): `[subject]` scales the built-in leg (the same
+//! leg `exoleg urdf` writes), a user's URDF is used as given, a contradicting mass is refused;
+//! the shipped treadmill trials with each subject's own numbers.
+use crate::common::*;
+use exoleg::Resources;
+use std::path::Path;
+
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+/// The leg `[subject]` runs is the one `exoleg urdf` writes: the same subject through a
+/// written URDF and `hip.subject_mass_kg` gives the same rows; the scaled cylinder is the
+/// template's times the thigh ratio at every knee angle (the same knee range).
+#[test]
+fn a_subject_scales_the_builtin_leg_and_exoleg_urdf_writes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = dir.path().join("s02.urdf");
+    let o = std::process::Command::new(exe())
+        .args([
+            "urdf",
+            "--mass-kg",
+            "52.9",
+            "--height-m",
+            "1.668",
+            "--leg-length-m",
+            "0.865",
+            "--sex",
+            "female",
+            "--out",
+        ])
+        .arg(&urdf)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let short = ["sim.duration_s=1.0", "metrics.settle_s=0.5", "reference.gait_trial=\"wbds02_treadmill_t03\""];
+    let mut with_subject = shipped("treadmill_subject.toml", &short);
+    with_subject.file.subject = Some(exoleg::scenario::SubjectParams {
+        mass_kg: 52.9,
+        height_m: 1.668,
+        leg_length_m: Some(0.865),
+        sex: exoleg::leg::subject::Sex::Female,
+    });
+    let mut with_file = with_subject.clone();
+    with_file.file.subject = None;
+    with_file.file.leg.urdf = urdf.display().to_string();
+    with_file.file.hip.subject_mass_kg = Some(52.9);
+    let (a, b) = (run_scenario(&with_subject).unwrap(), run_scenario(&with_file).unwrap());
+    assert_eq!(a.record.rows, b.record.rows, "the same leg either way");
+    let sc = with_subject.resolve(&Resources::new()).unwrap();
+    assert!(sc.inputs.iter().any(|i| i.origin.contains("scaled to [subject]")), "{:?}", sc.inputs);
+    let leg = &sc.model.leg().unwrap().model;
+    // The template at its own subject (the built-in exo_leg_small, unrounded).
+    let template = exoleg::leg::subject::SubjectBody {
+        mass_kg: 60.0,
+        height_m: 1.60,
+        leg_length_m: None,
+        sex: exoleg::leg::subject::Sex::Female,
+    };
+    let small = exoleg::leg::subject::scaled_urdf(&template);
+    let small = exoleg::leg::LegSpec::from_urdf_with(&small, &Default::default()).unwrap();
+    let k = leg.knee_joint().origin_xyz[2] / small.knee_joint().origin_xyz[2];
+    // Measured k = 1.0800 (her thigh 0.3743 m against the template's 0.3398 m).
+    assert!((k - 1.08).abs() < 1e-3, "k = {k}");
+    for q in [-10.0f64, 0.0, 30.0, 60.0, 100.0] {
+        let (l, t) = (
+            exoleg::leg::cylinder_length_at(leg, q.to_radians()),
+            exoleg::leg::cylinder_length_at(&small, q.to_radians()),
+        );
+        assert!((l / t - k).abs() < 1e-9, "at {q} deg: {l} vs {k} x {t}");
+    }
+    let mass: f64 = leg.links().iter().map(|l| l.mass_kg).sum();
+    // de Leva: thigh 14.78 %, shank 4.81 %, foot 1.29 % of 52.9 kg, plus the 1.35 kg cylinder.
+    assert!((mass - (0.2088 * 52.9 + 1.35)).abs() < 1e-6, "leg mass {mass}");
+}
+
+/// A user's URDF is used as given (a warning says so); the mass given twice and differently is
+/// refused naming both keys.
+#[test]
+fn subject_with_a_user_urdf_warns_and_a_contradiction_is_refused() {
+    let urdf = Path::new(ROOT).join("urdf/exo_leg.urdf").display().to_string();
+    let s = shipped("treadmill_subject.toml", &[&format!("leg.urdf={urdf:?}")]);
+    let sc = s.resolve(&Resources::new()).unwrap();
+    assert!(
+        sc.warnings.iter().any(|w| w.contains("leg.urdf is your own URDF: it is used as given")),
+        "{:?}",
+        sc.warnings
+    );
+    let p = Path::new(ROOT).join("assets/scenarios/treadmill_subject.toml");
+    let e = exoleg::Scenario::load(Some(&p), &["hip.subject_mass_kg=80.0".to_string()]).unwrap_err().to_string();
+    assert!(e.contains("hip.subject_mass_kg") && e.contains("subject.mass_kg = 74.3"), "{e}");
+    let e = exoleg::Scenario::load(Some(&p), &["subject.leg_length_m=1.5".to_string()]).unwrap_err().to_string();
+    assert!(e.contains("subject.leg_length_m"), "{e}");
+}
+
+/// Subject 01's three treadmill trials with his own numbers (trials.csv: mass, stature, leg
+/// length, belt speed, stride time) and nothing else changed meet the issue's walking figures
+/// but the extensor peak's size; subject 02's do not yet (README table) but a collapse is
+/// always flagged.
+#[test]
+fn subject_01_walks_on_the_treadmill_at_three_speeds() {
+    // (trial, belt m/s, stride s). Measured: stance 0.578 / 0.542 / 0.533; GRF r 0.971 /
+    // 0.951 / 0.957, 10 Hz peak 1.16 / 1.42 / 1.37 x; unfiltered peak 885 / 1172 / 1166 N
+    // against the data's 745 / 766 / 822; stance knee moment r 0.926 / 0.899 / 0.912; flexor
+    // peak -41 / -41 / -43 N m against -44 / -48 / -52; extensor 7 / 32 / 39 against 2 / 15 / 21
+    // (outside 50 % at T05 and T06: not asserted).
+    for (trial, belt, stride) in [("t03", 0.85, 1.3833), ("t05", 1.21, 1.0633), ("t06", 1.40, 1.0067)] {
+        let dur = (6.0 * stride / 0.00025f64).round() * 0.00025;
+        let sets = [
+            format!("reference.gait_trial=\"wbds01_treadmill_{trial}\""),
+            format!("ground.belt_speed_m_s={belt}"),
+            format!("sim.duration_s={dur}"),
+            format!("metrics.settle_s={stride}"),
+        ];
+        let s = shipped("treadmill_subject.toml", &sets.iter().map(String::as_str).collect::<Vec<_>>());
+        let out = run_scenario(&s).unwrap();
+        let c = out.summary.contact.unwrap();
+        let d = c.dataset.unwrap();
+        assert!(c.not_walking.is_empty(), "{trial}: {:?}", c.not_walking);
+        assert!((0.45..=0.70).contains(&c.stance_fraction), "{trial}: stance {}", c.stance_fraction);
+        assert!(
+            d.grf_correlation >= 0.8 && d.grf_peak_ratio <= 1.5,
+            "{trial}: GRF {} x{}",
+            d.grf_correlation,
+            d.grf_peak_ratio
+        );
+        assert!(
+            c.peak_ground_reaction_n <= 2.0 * d.data_peak_ground_reaction_n,
+            "{trial}: peak {}",
+            c.peak_ground_reaction_n
+        );
+        assert!(d.knee_moment_stance_correlation >= 0.7, "{trial}: knee moment r {}", d.knee_moment_stance_correlation);
+        if d.data_flexor_peak_nm < -10.0 {
+            let r = d.flexor_peak_nm / d.data_flexor_peak_nm;
+            assert!((0.5..=1.5).contains(&r), "{trial}: flexor {} vs {}", d.flexor_peak_nm, d.data_flexor_peak_nm);
+        }
+    }
+}
