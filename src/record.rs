@@ -262,6 +262,45 @@ impl<T: RecordSink + ?Sized> RecordSink for &mut T {
     }
 }
 
+/// Passes the first row and every `n`-th after it to `inner` (`output.every_steps`: the
+/// recorded time series thinned; the metrics, fed separately, still see every step).
+#[derive(Debug)]
+pub struct EveryNth<S> {
+    inner: S,
+    n: usize,
+    seen: usize,
+}
+
+impl<S> EveryNth<S> {
+    /// Keep rows 0, n, 2n, ... (`n` >= 1; 0 is taken as 1).
+    pub fn new(inner: S, n: usize) -> Self {
+        Self { inner, n: n.max(1), seen: 0 }
+    }
+    /// The sink inside.
+    pub fn into_inner(self) -> S {
+        self.inner
+    }
+    /// The sink inside.
+    pub fn inner(&self) -> &S {
+        &self.inner
+    }
+}
+
+impl<S: RecordSink> RecordSink for EveryNth<S> {
+    fn start(&mut self, layout: &Layout) -> Result<()> {
+        self.inner.start(layout)
+    }
+    fn row(&mut self, row: &Row) -> Result<()> {
+        let keep = self.seen % self.n == 0;
+        self.seen += 1;
+        if keep {
+            self.inner.row(row)
+        } else {
+            Ok(())
+        }
+    }
+}
+
 /// Several sinks fed with the same rows, in order.
 pub struct Tee<'a>(pub Vec<&'a mut dyn RecordSink>);
 

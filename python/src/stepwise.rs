@@ -17,7 +17,7 @@ use std::sync::Arc;
 
 /// The sinks of a Python run: the columns, and the output files when asked for.
 pub struct PySinks {
-    pub cols: ColumnSink,
+    pub cols: exoleg::record::EveryNth<ColumnSink>,
     files: Option<RunFiles>,
 }
 
@@ -41,8 +41,10 @@ struct Started {
 /// Start a session of `sim` into columns and (with `out`) an output folder being written.
 fn start(sc: &ResolvedScenario, sim: CoreSimulation, out: Option<&str>) -> Result<Started, Error> {
     let dir = out.map(|o| OutputDir::prepare(std::path::Path::new(o), "out")).transpose()?;
-    let files = dir.as_ref().map(|d| RunFiles::create(d.path())).transpose()?;
-    let sinks = PySinks { cols: ColumnSink::with_capacity(sc.model.steps + 1), files };
+    let every = sc.file.output.every_steps;
+    let files = dir.as_ref().map(|d| RunFiles::create(d.path(), every)).transpose()?;
+    let cols = exoleg::record::EveryNth::new(ColumnSink::with_capacity(sc.model.steps / every.max(1) + 1), every);
+    let sinks = PySinks { cols, files };
     Ok(Started { session: Session::new(sim, sinks)?, dir })
 }
 
@@ -58,7 +60,7 @@ fn finish(sc: &ResolvedScenario, st: Started) -> Result<(String, ColumnSink), Er
         }
         _ => summary_json(sc, &f.summary, f.design)?,
     };
-    Ok((summary_json, sinks.cols))
+    Ok((summary_json, sinks.cols.into_inner()))
 }
 
 fn summary_json(

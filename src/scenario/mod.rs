@@ -161,6 +161,22 @@ impl Default for ReferenceSection {
     }
 }
 
+/// `[output]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputSection {
+    /// Record one `timeseries.csv` row (and one Python column entry) every this many steps:
+    /// the rows at steps 0, n, 2n, ... The summary, the metrics and the plots still see every
+    /// step. Default 1. 1..=10^9.
+    pub every_steps: usize,
+}
+
+impl Default for OutputSection {
+    fn default() -> Self {
+        Self { every_steps: 1 }
+    }
+}
+
 /// `[metrics]`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -214,6 +230,8 @@ pub struct ScenarioFile {
     pub metrics: MetricsSection,
     /// Pass/fail criteria.
     pub criteria: Criteria,
+    /// What the run records.
+    pub output: OutputSection,
     /// The wearer's body: scales the built-in leg and sets the subject's mass.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub subject: Option<SubjectParams>,
@@ -273,6 +291,7 @@ impl Default for ScenarioFile {
             wearer: WearerParams::default(),
             metrics: MetricsSection::default(),
             criteria: Criteria::default(),
+            output: OutputSection::default(),
             subject: None,
         }
     }

@@ -101,6 +101,9 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     sensors_and_actuator(&c, f)?;
     leg_human_metrics(&c, f)?;
     subject(&c, f)?;
+    if !(1..=1_000_000_000).contains(&f.output.every_steps) {
+        return Err(c.fail("output.every_steps", format!("must be 1..=1000000000, got {}", f.output.every_steps)));
+    }
     walking(&c, f)
 }
 

@@ -94,9 +94,10 @@ pub fn run_to_memory(sc: &ResolvedScenario) -> Result<MemoryRun> {
 
 /// [`run_to_memory`] with the controller from `source`.
 pub fn run_to_memory_with(sc: &ResolvedScenario, source: ControllerSource) -> Result<MemoryRun> {
-    let mut rec = crate::record::MemoryRecord::default();
+    let mut thinned = crate::record::EveryNth::new(crate::record::MemoryRecord::default(), sc.file.output.every_steps);
     let sim = Simulation::build(sc.model.clone(), source)?;
-    let (summary, design) = crate::session::run_simulation(sim, &mut rec)?;
+    let (summary, design) = crate::session::run_simulation(sim, &mut thinned)?;
+    let rec = thinned.into_inner();
     let criteria = check_criteria(&sc.file.criteria, &summary);
     let file = SummaryFile::new(sc, &summary, &criteria, design);
     let summary_json =
@@ -129,7 +130,7 @@ pub fn run_into_with(
     extra: Option<&mut dyn RecordSink>,
 ) -> Result<RunReport> {
     let sim = Simulation::build(sc.model.clone(), source)?;
-    let mut files = RunFiles::create(dir)?;
+    let mut files = RunFiles::create(dir, sc.file.output.every_steps)?;
     let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut files];
     if let Some(e) = extra {
         sinks.push(e);
@@ -142,16 +143,17 @@ pub fn run_into_with(
 /// (bounded); [`RunFiles::finish`] adds `summary.json` and the plots. A [`RecordSink`].
 pub struct RunFiles {
     dir: std::path::PathBuf,
-    csv: CsvSink,
+    csv: crate::record::EveryNth<CsvSink>,
     plots: PlotBuffer,
 }
 
 impl RunFiles {
-    /// Start writing into `dir` (which must exist).
-    pub fn create(dir: &Path) -> Result<Self> {
+    /// Start writing into `dir` (which must exist), one `timeseries.csv` row in
+    /// `every_steps` (`output.every_steps`).
+    pub fn create(dir: &Path, every_steps: usize) -> Result<Self> {
         Ok(Self {
             dir: dir.to_path_buf(),
-            csv: CsvSink::create(&dir.join("timeseries.csv"))?,
+            csv: crate::record::EveryNth::new(CsvSink::create(&dir.join("timeseries.csv"))?, every_steps),
             plots: PlotBuffer::new(),
         })
     }
@@ -165,7 +167,7 @@ impl RunFiles {
         summary: Summary,
         design: Option<serde_json::Value>,
     ) -> Result<RunReport> {
-        self.csv.finish()?;
+        self.csv.into_inner().finish()?;
         let criteria = check_criteria(&sc.file.criteria, &summary);
         let file = SummaryFile::new(sc, &summary, &criteria, design);
         write_json(&self.dir.join("summary.json"), &file)?;
