@@ -291,7 +291,7 @@ impl<S: RecordSink> RecordSink for EveryNth<S> {
         self.inner.start(layout)
     }
     fn row(&mut self, row: &Row) -> Result<()> {
-        let keep = self.seen % self.n == 0;
+        let keep = self.seen.is_multiple_of(self.n);
         self.seen += 1;
         if keep {
             self.inner.row(row)
