@@ -6,6 +6,11 @@
 //! stepped by `Leg::step` alone (Rapier's step plus our force application and pin readout, same
 //! solver settings, 1000 steps of 1 ms) under the reference force, with no controller,
 //! hydraulics or recording.
+//!
+//! `treadmill_*`: `gait_treadmill.toml` (0.25 ms steps, 1.1 s: one stride) with the compliant
+//! sole (the default) and with Rapier's rigid contacts. `*_csv`: the same run as its `_memory`
+//! twin writing `timeseries.csv` (to a temporary folder, flushed and synced as the CLI does)
+//! instead of keeping the rows in memory: the output path's cost (10 s runs, 10,000 rows).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use exoleg::record::NullSink;
@@ -23,6 +28,40 @@ fn steps(c: &mut Criterion) {
     for (name, s) in &cases {
         g.throughput(Throughput::Elements(s.model.steps as u64));
         g.bench_function(*name, |b| b.iter(|| exoleg::run(&s.model, &mut NullSink).expect("run")));
+    }
+    let treadmill = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/gait_treadmill.toml");
+    for (name, sets) in [
+        ("treadmill_compliant", &["sim.duration_s=1.1"][..]),
+        ("treadmill_rigid", &["sim.duration_s=1.1", "ground.contact=\"rigid\""][..]),
+    ] {
+        let s =
+            exoleg::load(Some(&treadmill), &sets.iter().chain(&["metrics.settle_s=0.5"]).copied().collect::<Vec<_>>())
+                .unwrap();
+        g.throughput(Throughput::Elements(s.model.steps as u64));
+        g.bench_function(name, |b| b.iter(|| exoleg::run(&s.model, &mut NullSink).expect("run")));
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    for (name, sets) in [
+        ("reduced", &["leg.engine=\"reduced\"", "sim.duration_s=10.0"][..]),
+        ("bench", &["plant.kind=\"bench\"", "sim.duration_s=10.0"][..]),
+    ] {
+        let s = exoleg::load(None, sets).unwrap();
+        g.throughput(Throughput::Elements(s.model.steps as u64));
+        g.bench_function(format!("{name}_memory"), |b| {
+            b.iter(|| {
+                let mut rec = exoleg::record::MemoryRecord::default();
+                exoleg::run(&s.model, &mut rec).expect("run");
+                rec.rows.len()
+            })
+        });
+        let out = tmp.path().join(name);
+        g.bench_function(format!("{name}_csv"), |b| {
+            b.iter(|| {
+                let mut sink = exoleg::output::CsvSink::create(&out).expect("csv");
+                exoleg::run(&s.model, &mut sink).expect("run");
+                sink.finish().expect("flush")
+            })
+        });
     }
     let urdf = exoleg::leg::BUILTIN_URDFS.iter().find(|(n, _)| *n == "builtin:exo_leg").expect("builtin leg").1;
     let model = exoleg::leg::LegSpec::from_urdf_str(urdf, "knee").expect("builtin leg parses");
