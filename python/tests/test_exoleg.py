@@ -45,6 +45,16 @@ def test_default_run_is_bit_identical_to_the_cli_csv(tmp_path):
     assert "[controller]" in r.scenario and "urdf_sha256" in r.scenario
 
 
+def test_every_steps_thins_the_columns_not_the_summary():
+    full = exoleg.run(None, {"plant.kind": "bench", "sim.duration_s": 0.1})
+    thin = exoleg.run(None, {"plant.kind": "bench", "sim.duration_s": 0.1, "output.every_steps": 10})
+    assert len(full.timeseries["t_s"]) == 101 and len(thin.timeseries["t_s"]) == 11
+    for name, col in thin.timeseries.items():
+        assert np.array_equal(col, full.timeseries[name][::10]), name
+    for k in ("max_abs_force_error_n", "rms_force_error_n", "steps"):
+        assert thin.summary[k] == full.summary[k], k
+
+
 def test_overrides_and_dict_scenarios():
     # A dict is a scenario file (unset keys take their defaults), like the same TOML text.
     a = exoleg.run('[sim]\nduration_s = 0.1\n[controller]\nkind = "znn"\n')
