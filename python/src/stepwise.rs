@@ -42,7 +42,7 @@ struct Started {
 fn start(sc: &ResolvedScenario, sim: CoreSimulation, out: Option<&str>) -> Result<Started, Error> {
     let dir = out.map(|o| OutputDir::prepare(std::path::Path::new(o), "out")).transpose()?;
     let every = sc.file.output.every_steps;
-    let files = dir.as_ref().map(|d| RunFiles::create(d.path(), every)).transpose()?;
+    let files = dir.as_ref().map(|d| RunFiles::create(d.path(), &sc.file.output)).transpose()?;
     let cols = exoleg::record::EveryNth::new(ColumnSink::with_capacity(sc.model.steps / every.max(1) + 1), every);
     let sinks = PySinks { cols, files };
     Ok(Started { session: Session::new(sim, sinks)?, dir })

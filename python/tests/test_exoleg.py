@@ -55,6 +55,19 @@ def test_every_steps_thins_the_columns_not_the_summary():
         assert thin.summary[k] == full.summary[k], k
 
 
+def test_parquet_output_reads_back_in_pandas_as_the_csv(tmp_path):
+    import pandas  # scripts/test installs pandas and pyarrow
+
+    over = {"plant.kind": "bench", "sim.duration_s": 0.2}
+    exoleg.run(None, over, out=tmp_path / "csv")
+    exoleg.run(None, dict(over, **{"output.format": "parquet"}), out=tmp_path / "pq")
+    a = pandas.read_csv(tmp_path / "csv" / "timeseries.csv", float_precision="round_trip")
+    b = pandas.read_parquet(tmp_path / "pq" / "timeseries.parquet")
+    assert list(a.columns) == list(b.columns) and len(a) == len(b) == 201
+    for name in a.columns:
+        assert np.array_equal(a[name].to_numpy(np.float64), b[name].to_numpy(np.float64), equal_nan=True), name
+
+
 def test_overrides_and_dict_scenarios():
     # A dict is a scenario file (unset keys take their defaults), like the same TOML text.
     a = exoleg.run('[sim]\nduration_s = 0.1\n[controller]\nkind = "znn"\n')

@@ -11,8 +11,10 @@
 
 pub mod animate;
 mod csv;
+mod parquet;
 mod plot;
 pub use self::csv::*;
+pub use self::parquet::{ParquetSink, TimeSeriesSink, ROW_GROUP_ROWS};
 pub use plot::*;
 
 use crate::error::{Error, Result};
@@ -27,7 +29,8 @@ const MARKER_HEADER: &str = "exoleg output folder";
 /// A lock file inside a temporary folder, locked while its run is alive.
 const LOCK: &str = ".exoleg-lock";
 /// Names an older exoleg wrote into a folder whose marker has no list.
-const OLD_OUTPUTS: [&str; 9] = [
+const OLD_OUTPUTS: [&str; 10] = [
+    "timeseries.parquet",
     "timeseries.csv",
     "summary.json",
     "force_tracking.png",

@@ -169,11 +169,25 @@ pub struct OutputSection {
     /// the rows at steps 0, n, 2n, ... The summary, the metrics and the plots still see every
     /// step. Default 1. 1..=10^9.
     pub every_steps: usize,
+    /// `"csv"` (default): `timeseries.csv`; `"parquet"`: `timeseries.parquet` (the same
+    /// columns as doubles, SNAPPY-compressed; for long runs).
+    pub format: OutputFormat,
+}
+
+/// `output.format`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum OutputFormat {
+    /// `timeseries.csv`.
+    #[default]
+    Csv,
+    /// `timeseries.parquet`.
+    Parquet,
 }
 
 impl Default for OutputSection {
     fn default() -> Self {
-        Self { every_steps: 1 }
+        Self { every_steps: 1, format: OutputFormat::Csv }
     }
 }
 

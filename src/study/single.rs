@@ -3,7 +3,7 @@
 use crate::control::DiscreteController;
 use crate::error::{Error, Result};
 use crate::metrics::{check_criteria, CriterionResult, Summary};
-use crate::output::{force_tracking_png, knee_tracking_png, write_json, CsvSink, PlotBuffer};
+use crate::output::{force_tracking_png, knee_tracking_png, write_json, PlotBuffer};
 use crate::record::{RecordSink, Tee};
 use crate::scenario::{InputRecord, ResolvedScenario, ScenarioFile};
 use crate::sim::{ControllerSource, Simulation};
@@ -130,7 +130,7 @@ pub fn run_into_with(
     extra: Option<&mut dyn RecordSink>,
 ) -> Result<RunReport> {
     let sim = Simulation::build(sc.model.clone(), source)?;
-    let mut files = RunFiles::create(dir, sc.file.output.every_steps)?;
+    let mut files = RunFiles::create(dir, &sc.file.output)?;
     let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut files];
     if let Some(e) = extra {
         sinks.push(e);
@@ -143,17 +143,18 @@ pub fn run_into_with(
 /// (bounded); [`RunFiles::finish`] adds `summary.json` and the plots. A [`RecordSink`].
 pub struct RunFiles {
     dir: std::path::PathBuf,
-    csv: crate::record::EveryNth<CsvSink>,
+    csv: crate::record::EveryNth<crate::output::TimeSeriesSink>,
     plots: PlotBuffer,
 }
 
 impl RunFiles {
-    /// Start writing into `dir` (which must exist), one `timeseries.csv` row in
-    /// `every_steps` (`output.every_steps`).
-    pub fn create(dir: &Path, every_steps: usize) -> Result<Self> {
+    /// Start writing into `dir` (which must exist) as `output` says: one time-series row in
+    /// `every_steps`, as `timeseries.csv` or `timeseries.parquet`.
+    pub fn create(dir: &Path, output: &crate::scenario::OutputSection) -> Result<Self> {
+        let parquet = output.format == crate::scenario::OutputFormat::Parquet;
         Ok(Self {
             dir: dir.to_path_buf(),
-            csv: crate::record::EveryNth::new(CsvSink::create(&dir.join("timeseries.csv"))?, every_steps),
+            csv: crate::record::EveryNth::new(crate::output::TimeSeriesSink::create(dir, parquet)?, output.every_steps),
             plots: PlotBuffer::new(),
         })
     }

@@ -120,3 +120,45 @@ fn every_tenth_row_thins_the_file_and_not_the_summary() {
     }
     assert_eq!(s1, s10, "the summary's figures");
 }
+
+/// `output.format = "parquet"` holds the same values as `timeseries.csv`, bit for bit, under
+/// the same column names (read back with the parquet crate's reader).
+#[test]
+fn parquet_holds_the_csv_values() {
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    use parquet::record::RowAccessor;
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios");
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |name: &str, format: &str| {
+        let out = tmp.path().join(name);
+        let o = Command::new(env!("CARGO_BIN_EXE_exoleg"))
+            .args(["run", "--quiet", "--set", &format!("output.format=\"{format}\""), "--out"])
+            .arg(&out)
+            .arg(dir.join("gait_walk.toml"))
+            .args(["--set", "sim.duration_s=0.5", "--set", "metrics.settle_s=0.1"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let (csv, pq) = (run("csv", "csv"), run("pq", "parquet"));
+    assert!(!pq.join("timeseries.csv").exists() && !csv.join("timeseries.parquet").exists());
+    let text = std::fs::read_to_string(csv.join("timeseries.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let reader = SerializedFileReader::new(std::fs::File::open(pq.join("timeseries.parquet")).unwrap()).unwrap();
+    let schema = reader.metadata().file_metadata().schema_descr();
+    let names: Vec<String> = schema.columns().iter().map(|c| c.name().to_string()).collect();
+    assert_eq!(names, header);
+    let mut rows = 0;
+    for (row, line) in reader.get_row_iter(None).unwrap().zip(lines) {
+        let row = row.unwrap();
+        for (j, v) in line.split(',').enumerate() {
+            let want: f64 = v.parse().unwrap();
+            let got = row.get_double(j).unwrap();
+            assert!(got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()), "row {rows} {}", header[j]);
+        }
+        rows += 1;
+    }
+    assert_eq!(rows, text.lines().count() - 1);
+}
