@@ -597,7 +597,11 @@ impl Scenario {
             // The subject's mass is the hip's (kinetics, carried weight), in one place.
             let mut with_mass = self.clone();
             with_mass.file.hip.subject_mass_kg = Some(m);
-            return with_mass.resolve(res);
+            let mut resolved = with_mass.resolve(res)?;
+            // Recorded as written: the mass once, in [subject] (a sweep of subject.mass_kg on a
+            // reproduced run is not a contradiction).
+            resolved.file.hip.subject_mass_kg = None;
+            return Ok(resolved);
         }
         let f = &self.file;
         let mut cx = Ctx { s: self, res, file: f.clone(), inputs: Vec::new(), warnings: Vec::new() };

@@ -47,6 +47,7 @@ fn a_subject_scales_the_builtin_leg_and_exoleg_urdf_writes_it() {
     assert_eq!(a.record.rows, b.record.rows, "the same leg either way");
     let sc = with_subject.resolve(&Resources::new()).unwrap();
     assert!(sc.inputs.iter().any(|i| i.origin.contains("scaled to [subject]")), "{:?}", sc.inputs);
+    assert_eq!(sc.file.hip.subject_mass_kg, None, "the mass recorded once, in [subject]");
     let leg = &sc.model.leg().unwrap().model;
     // The template at its own subject (the built-in exo_leg_small, unrounded).
     let template = exoleg::leg::subject::SubjectBody {
