@@ -5,7 +5,6 @@ instances are independent; 1000 instantiate-run-free cycles keep memory flat; wr
 errors with a logged message. Run by scripts/test, which builds the FMU library
 (`cargo build --release -p exoleg-fmu`) next to EXOLEG_BIN."""
 
-import math
 import os
 import shutil
 import subprocess
@@ -18,6 +17,7 @@ from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2Ca
 from fmpy.validation import validate_fmu
 
 import exoleg
+import test_controller  # noqa: E402 (this folder is on the path under pytest)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("EXOLEG_BIN", os.path.join(ROOT, "target", "release", "exoleg"))
@@ -51,20 +51,10 @@ def fmus(tmp_path_factory):
     }
 
 
-def erl_smc(n, k=100.0, delta=15.0, zeta=10.0):
-    """ERL-SMC in Python (the paper's Eq. 50, in the order of exoleg's built-in) over readings
-    with the controller's names; `n`: the nominal model."""
-
-    def law(obs):
-        e = obs.ref_force_n - obs.force_n
-        e_dot = obs.ref_force_rate_n_per_s - obs.force_rate_n_per_s
-        s = e_dot + delta * e
-        accel = obs.ref_force_accel_n_per_s2 + delta * e_dot + k * s + zeta * math.tanh(s)
-        return n["tau_s"] / (n["n1"] * n["k_s"]) * (
-            accel + n["n3"] * obs.force_rate_n_per_s + n["n2"] * obs.piston_accel_m_s2 + n["n1"] * obs.spool_m / n["tau_s"]
-        )
-
-    return law
+def erl_smc(n, k=100.0):
+    """ERL-SMC in Python over readings with the controller's names (the law of
+    test_controller.py, the same on every route); `n`: the nominal model."""
+    return test_controller.erl_smc({"nominal": n}, k)
 
 
 class Readings:
