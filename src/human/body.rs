@@ -8,12 +8,14 @@
 //! knee torque (flexion +)   = K_k (k_d - k) + C_k (k_d' - k') - s_k * M_knee,data   (data: extensor +)
 //! ankle torque (dorsi +)    = K_a (a_d - a) + C_a (a_d' - a') - s_a * M_ankle,data  (data: plantarflexor +)
 //! tether force (x)          = -K_t x - C_t x'
-//! support force (z, up)     = s_o * [ m_subject g + K_s (z_d - z) + C_s (z_d' - z') ]
+//! support force (z, up)     = max(0, s_o * [ m_subject g + K_s (z_d - z) + C_s (z_d' - z') ])
 //! ```
 //! `s_o` is the other leg's share of the support (the data's `grf_other / (grf_this +
 //! grf_other)`: 1 in this leg's swing, 0 in its single support; `hip.other_leg_share` when
 //! set), `m_subject g` the subject's weight, and `z_d` the hip height the data imply
-//! (see `reference::WalkingData`). The other leg is a force on the pelvis, not a body.
+//! (see `reference::WalkingData`). The other leg is a force on the pelvis, not a body; like a
+//! leg it pushes and never pulls (without the clamp its damper pulled the pelvis down onto
+//! the landing foot with up to 1.4 kN and doubled the heel-strike peak of a light subject).
 
 use crate::reference::WalkingSample;
 use serde::{Deserialize, Serialize};
@@ -84,8 +86,11 @@ pub struct HipParams {
     /// share. Default 20000 (stiffer springs force the data's height on a leg whose geometry
     /// differs from the subject's, and the stance ground reaction loses its shape). >= 0.
     pub support_stiffness_n_per_m: f64,
-    /// The virtual other leg's damper (N s/m), scaled by its share. Default 6000 (about 1.6
-    /// times critical with 60 kg). >= 0.
+    /// The virtual other leg's damper (N s/m), scaled by its share. Default 3000 (1.4 times
+    /// critical with 60 kg on the default spring, 1.6 with 45 kg). More damping slows the
+    /// spring's slow pole (`K/C`: 0.3 s at 6000) so far that a pelvis that sank in one stance
+    /// is not back at the data's height by the next heel strike, and a light subject's pelvis
+    /// sank stride after stride into a dragged leg. >= 0.
     pub support_damping_n_s_per_m: f64,
     /// What the virtual other leg carries besides its spring: `weight` (its share of the
     /// subject's weight) or `data` (the other foot's ground reaction in the data, the body's
@@ -124,7 +129,7 @@ impl Default for HipParams {
             tether_damping_n_s_per_m: 300.0,
             tether_locked: false,
             support_stiffness_n_per_m: 20000.0,
-            support_damping_n_s_per_m: 6000.0,
+            support_damping_n_s_per_m: 3000.0,
             other_leg_share: None,
             support_force: SupportForce::Weight,
             initial_clearance_m: 0.002,
@@ -224,7 +229,7 @@ pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s:
             - wearer.knee_moment_share * d.knee_moment_nm,
         ankle_torque_nm: imp(wearer.ankle_stiffness_nm_per_rad, wearer.ankle_damping_nm_s_per_rad, &d.ankle, s.ankle)
             - wearer.ankle_moment_share * d.ankle_moment_nm,
-        pelvis_force_n: [tether, support],
+        pelvis_force_n: [tether, support.max(0.0)],
     }
 }
 

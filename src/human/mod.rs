@@ -50,4 +50,6 @@ impl HumanParams {
 }
 
 pub mod body;
+pub mod events;
 pub use body::*;
+pub use events::{EventParams, GaitEvents};

@@ -343,6 +343,19 @@ pub fn sole_points_at(
     knee_rad: f64,
     ankle_rad: f64,
 ) -> Option<(super::planar::P2, Vec<super::planar::P2>)> {
+    let (ankle, contacts) = sole_contacts_at(model, hip_rad, knee_rad, ankle_rad)?;
+    Some((ankle, contacts.into_iter().map(|c| c.0).collect()))
+}
+
+/// [`sole_points_at`] with the radius (m) each point has under the compliant contact law
+/// (`leg::ground`): a sphere's or capsule's own, [`super::CORNER_RADIUS_M`] at the corners of
+/// a box or cylinder.
+pub fn sole_contacts_at(
+    model: &LegSpec,
+    hip_rad: f64,
+    knee_rad: f64,
+    ankle_rad: f64,
+) -> Option<(super::planar::P2, Vec<(super::planar::P2, f64)>)> {
     use super::model::CollisionShape as S;
     use super::planar::P2;
     let poses = link_poses_full_at(model, hip_rad, knee_rad, ankle_rad)?;
@@ -363,7 +376,8 @@ pub fn sole_points_at(
             }
             S::Mesh { .. } => continue,
         };
-        out.extend(corners.into_iter().map(|k| pose.apply(k).minus(P2::new(0.0, radius))));
+        let contact_radius = if radius > 0.0 { radius } else { super::CORNER_RADIUS_M };
+        out.extend(corners.into_iter().map(|k| (pose.apply(k).minus(P2::new(0.0, radius)), contact_radius)));
     }
     Some((poses[foot].t, out))
 }

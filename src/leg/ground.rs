@@ -61,6 +61,37 @@ pub const CORNER_RADIUS_M: f64 = 0.005;
 /// Mass (kg) whose critical damping the friction spring has.
 const FRICTION_MASS_KG: f64 = 1.0;
 
+/// How deep (m) the lowest of a sole's contact points sinks into the ground when the sole,
+/// held at its pose, carries `load_n` statically under the compliant law of `modulus_pa`:
+/// the depth at which the Hertz forces of the points (`(bottom point, radius)` in any frame
+/// with z up, as [`super::sole_contacts_at`] gives them) add up to the load. 0 without load.
+pub fn static_sink_m(modulus_pa: f64, contacts: &[(super::planar::P2, f64)], load_n: f64) -> f64 {
+    let lowest = contacts.iter().map(|c| c.0.z).fold(f64::INFINITY, f64::min);
+    let positive = |v: f64| v > 0.0 && v.is_finite();
+    if !positive(load_n) || !lowest.is_finite() || !positive(modulus_pa) {
+        return 0.0;
+    }
+    let force = |depth: f64| -> f64 {
+        contacts.iter().map(|(p, r)| HERTZ * modulus_pa * r.sqrt() * (depth - (p.z - lowest)).max(0.0).powf(1.5)).sum()
+    };
+    // The force grows without bound with the depth: double until it carries the load, then
+    // bisect (60 halvings: far below a micrometre).
+    let mut hi = 1e-3;
+    while force(hi) < load_n && hi < 10.0 {
+        hi *= 2.0;
+    }
+    let mut lo = 0.0;
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if force(mid) > load_n {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 /// One contact point of the compliant law: a sphere on a link, and where its friction anchor
 /// sits on the belt while it touches.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -32,10 +32,10 @@ pub use geometry::{
     cylinder_length_at, foot_points_at, generalized_inertia_at, gravity_torque_at, hip_inverse_dynamics,
     hip_knee_mass_matrix_at, hip_rotated, holding_force_at, knee_forward_acceleration, knee_inverse_dynamics,
     link_poses_at, link_poses_full_at, link_poses_with_hip_at, loop_pose_at, moment_arm_at, moment_arm_curvature_at,
-    moment_arm_slope_at, potential_energy_at, potential_energy_with_hip_at, reduced_acceleration, sole_points_at,
-    FootPoints,
+    moment_arm_slope_at, potential_energy_at, potential_energy_with_hip_at, reduced_acceleration, sole_contacts_at,
+    sole_points_at, FootPoints,
 };
-pub use ground::{CompliantContact, ContactReading, GroundConfig, CORNER_RADIUS_M};
+pub use ground::{static_sink_m, CompliantContact, ContactReading, GroundConfig, CORNER_RADIUS_M};
 pub use model::{
     ActuatorSpec, CollisionShape, CollisionSpec, JointKind, JointSpec, LegOptions, LegSpec, LinkSpec, LoopClosureSpec,
     LoopPose,

@@ -40,72 +40,71 @@ pub struct KneeForceReference {
     friction: FrictionParams,
     drive_hip: bool,
     stance: Option<Arc<WalkingData>>,
+    assist_fit: Option<Arc<FourierSeries>>,
 }
 
 impl KneeForceReference {
     /// The Fourier fit of the inverse-dynamics force `tau_id / (dL/dq)` over a stride (the
     /// expensive part, shared by every run with the same leg, gait and hip motion).
     /// `with_hip`: include the hip trajectory in the inverse dynamics (the thigh follows it).
-    /// `assist`: on the carriage, the walking data and the assistance fraction: the fitted
-    /// force is then `(1 - w) F_id + w F_assist` with the stance weight `w` and
-    /// `F_assist = -fraction * M_knee,data / (dL/dq)(q_d)` (the data's extensor moment as a
-    /// flexion-positive torque over the moment arm).
-    pub fn inverse_dynamics_fit(
-        gait: &GaitReference,
-        model: &LegSpec,
-        with_hip: bool,
-        assist: Option<(&WalkingData, f64)>,
-    ) -> Result<FourierSeries> {
-        let stride = gait.stride_s;
-        let mut t = Vec::with_capacity(FF_SAMPLES);
-        let mut f = Vec::with_capacity(FF_SAMPLES);
-        for i in 0..FF_SAMPLES {
-            let ti = i as f64 * stride / FF_SAMPLES as f64;
+    pub fn inverse_dynamics_fit(gait: &GaitReference, model: &LegSpec, with_hip: bool) -> Result<FourierSeries> {
+        Self::fit_over_stride(gait, |ti| {
             let k = gait.knee_at(ti);
             let h = if with_hip { gait.hip_at(ti) } else { RefSample::default() };
             let tau =
                 knee_inverse_dynamics(model, (h.value, h.rate, h.accel), (k.value, k.rate, k.accel)).map_err(|e| {
                     Error::input("reference", "reference", format!("inverse dynamics at t = {ti:.4} s: {e}"))
                 })?;
-            let arm = moment_arm_at(model, k.value);
-            let f_id = tau / arm;
-            t.push(ti);
-            f.push(match assist {
-                None => f_id,
-                Some((w, fraction)) => {
-                    let pct = w.pct_at(ti);
-                    let weight = w.stance_weight_at_pct(pct);
-                    let f_assist = -fraction * w.knee_moment_at_pct(pct) / arm;
-                    (1.0 - weight) * f_id + weight * f_assist
-                }
-            });
-        }
-        Ok(FourierSeries::fit(&t, &f, stride, FF_HARMONICS))
+            Ok(tau / moment_arm_at(model, k.value))
+        })
+    }
+
+    /// On the carriage, the Fourier fit of the stance assistance over a stride,
+    /// `F_assist = -fraction * M_knee,data / (dL/dq)(q_d)` (the data's extensor moment as a
+    /// flexion-positive torque over the moment arm).
+    pub fn assist_fit(
+        gait: &GaitReference,
+        model: &LegSpec,
+        walking: &WalkingData,
+        fraction: f64,
+    ) -> Result<FourierSeries> {
+        Self::fit_over_stride(gait, |ti| {
+            let arm = moment_arm_at(model, gait.knee_at(ti).value);
+            Ok(-fraction * walking.knee_moment_at_pct(walking.pct_at(ti)) / arm)
+        })
+    }
+
+    fn fit_over_stride(gait: &GaitReference, f: impl Fn(f64) -> Result<f64>) -> Result<FourierSeries> {
+        let stride = gait.stride_s;
+        let t: Vec<f64> = (0..FF_SAMPLES).map(|i| i as f64 * stride / FF_SAMPLES as f64).collect();
+        let v = t.iter().map(|&ti| f(ti)).collect::<Result<Vec<f64>>>()?;
+        Ok(FourierSeries::fit(&t, &v, stride, FF_HARMONICS))
     }
 
     /// The reference from a fit made by [`Self::inverse_dynamics_fit`] with the same gait,
     /// model and hip motion, and the seal friction to add. `drive_hip`: the plant's thigh
     /// follows the hip trajectory kinematically. `stance`: on the carriage, the walking data
-    /// whose stance weight gates the outer loop (it acts in swing only).
+    /// and the assistance fit ([`Self::assist_fit`]; None: no assistance): the stance weight
+    /// then blends the feedforward from the inverse dynamics (swing) to the assistance
+    /// (stance) and gates the outer loop (it acts in swing only).
     pub fn new(
         gait: GaitReference,
         model: Arc<LegSpec>,
         friction: FrictionParams,
         drive_hip: bool,
         id_fit: Arc<FourierSeries>,
-        stance: Option<Arc<WalkingData>>,
+        stance: Option<(Arc<WalkingData>, Option<Arc<FourierSeries>>)>,
     ) -> Self {
-        Self { gait, id_fit, model, friction, drive_hip, stance }
+        let (stance, assist_fit) = match stance {
+            Some((w, a)) => (Some(w), a),
+            None => (None, None),
+        };
+        Self { gait, id_fit, assist_fit, model, friction, drive_hip, stance }
     }
 
-    /// Whether the outer loop is gated by the stance (carriage).
-    pub fn stance_gated(&self) -> bool {
-        self.stance.is_some()
-    }
-
-    /// Weight of the outer loop at `t_s`: 1, or on the carriage 1 - the stance weight.
-    pub fn outer_loop_weight(&self, t_s: f64) -> f64 {
-        self.stance.as_ref().map_or(1.0, |w| 1.0 - w.stance_weight_at_pct(w.pct_at(t_s)))
+    /// The walking data whose stance gates the outer loop (carriage), if any.
+    pub fn stance_gate(&self) -> Option<&WalkingData> {
+        self.stance.as_deref()
     }
 
     /// The seal friction along the trajectory, `F_f(v_d(t))` (N), with its first two time
@@ -126,9 +125,18 @@ impl KneeForceReference {
         self.drive_hip
     }
 
-    /// Feedforward force F_ff = F_id + F_f (N) and its first two time derivatives at `t_s`.
-    pub fn feedforward_at(&self, t_s: f64) -> RefSample {
-        let (value, rate, accel) = self.id_fit.eval(t_s);
+    /// Feedforward force F_ff = F_id + F_f (N) and its first two time derivatives at `t_s`;
+    /// on the carriage with the stance weight `w` (and its rates):
+    /// `F_ff = (1 - w) F_id + w F_assist + F_f`.
+    pub fn feedforward_at(&self, t_s: f64, stance_weight: Option<RefSample>) -> RefSample {
+        let (mut value, mut rate, mut accel) = self.id_fit.eval(t_s);
+        if let (Some(w), Some(_)) = (stance_weight, &self.stance) {
+            let b = self.assist_fit.as_ref().map_or((0.0, 0.0, 0.0), |f| f.eval(t_s));
+            let (d0, d1, d2) = (b.0 - value, b.1 - rate, b.2 - accel);
+            accel += w.value * d2 + 2.0 * w.rate * d1 + w.accel * d0;
+            rate += w.value * d1 + w.rate * d0;
+            value += w.value * d0;
+        }
         let f = self.friction_at(t_s);
         RefSample { value: value + f.value, rate: rate + f.rate, accel: accel + f.accel }
     }

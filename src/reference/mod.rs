@@ -91,15 +91,22 @@ impl ForceReference {
         }
     }
 
-    /// The desired force at `t_s` with a held outer-loop force `pd_force_n` (N) added (gait,
-    /// weighted by [`KneeForceReference::outer_loop_weight`], and pose; a sine has no outer
-    /// loop).
-    pub fn force_at(&self, t_s: f64, pd_force_n: f64) -> RefSample {
+    /// The desired force at `t_s` with a held outer-loop force `pd_force_n` (N) added (gait
+    /// and pose; a sine has no outer loop). On the carriage the leg's stance weight (from its
+    /// detected contact, `human::GaitEvents`; without a detector the data's phase) blends the
+    /// feedforward and gates the outer loop by `1 - w`.
+    pub fn force_at(&self, t_s: f64, pd_force_n: f64, stance_weight: Option<RefSample>) -> RefSample {
         match self {
             ForceReference::Sine(s) => s.at(t_s),
             ForceReference::Gait(k) => {
-                let mut r = k.feedforward_at(t_s);
-                r.value += if k.stance_gated() { pd_force_n * k.outer_loop_weight(t_s) } else { pd_force_n };
+                let w = k.stance_gate().map(|data| {
+                    stance_weight.unwrap_or_else(|| RefSample {
+                        value: data.stance_weight_at_pct(data.pct_at(t_s)),
+                        ..Default::default()
+                    })
+                });
+                let mut r = k.feedforward_at(t_s, w);
+                r.value += pd_force_n * (1.0 - w.map_or(0.0, |w| w.value));
                 r
             }
             ForceReference::Pose { .. } => RefSample { value: pd_force_n, ..Default::default() },

@@ -7,23 +7,34 @@
 //! - The other leg is this leg half a cycle later. Its share of the body's support at a
 //!   phase is `grf_other / (grf_this + grf_other)`: 1 in this leg's swing, 0 in its single
 //!   support.
-//! - The pelvis height the data imply: the hip sits as high above the ground as the feet on
-//!   the ground reach (from the angles and the URDF's sole shapes), each foot weighted by the
-//!   vertical load it carries in the data, smoothed by a Fourier fit.
+//! - The pelvis height the data imply: the hip sits as high above the ground as the foot on
+//!   the ground reaches (from the angles and the URDF's sole shapes, less the sole's static
+//!   sink under the data's load), this leg's once it carries a fifth of the body weight;
+//!   high enough for the swing foot to clear the ground; smoothed by a Fourier fit.
 //! - The belt speed the stance implies: how fast the sole point on the ground (the heel, then
 //!   the ball) moves backwards relative to the hip between heel strike and toe-off.
 //! - A stance weight in [0, 1]: 1 in this leg's stance, 0 in swing, with raised-cosine
 //!   transitions [`STANCE_BLEND_PCT`] wide centred on heel strike and toe-off.
 
 use super::{CycleTable, FourierSeries, GaitReference, RefSample};
-use crate::leg::{foot_points_at, sole_points_at, LegSpec};
+use crate::leg::{sole_contacts_at, sole_points_at, static_sink_m, LegSpec};
 
 /// Slices of the stance in which the sole's sweep is summed.
 const SWEEP_STEPS: usize = 200;
 /// Samples of the data-implied pelvis height over one cycle.
 const PELVIS_SAMPLES: usize = 400;
-/// Harmonics of the fit of the data-implied pelvis height.
-pub const PELVIS_HARMONICS: usize = 20;
+/// Harmonics of the fit of the data-implied pelvis height: up to 8 times the stride
+/// frequency, about 7 Hz at 1.1 s (the body's centre of mass moves smoothly; more harmonics
+/// ring at the kinks where the supporting foot changes, and the support's damper amplifies
+/// the ringing of the rate into hundreds of newtons).
+pub const PELVIS_HARMONICS: usize = 8;
+/// Load on this leg's foot (N/kg, about a fifth of the body weight) from which its reach alone
+/// sets the data-implied hip height in double support (see `pelvis_height_sample`).
+pub const THIS_LEG_HOLDS_N_PER_KG: f64 = 2.0;
+/// The swing foot's clearance over the ground the hip height keeps at mid-swing (m): about
+/// the minimum toe clearance measured in adult walking (1-2 cm; Winter 1992, Begg et al.
+/// 2007), as a half sine over the swing.
+pub const SWING_CLEARANCE_M: f64 = 0.02;
 /// Width of the stance weight's transitions (% of the cycle).
 pub const STANCE_BLEND_PCT: f64 = 4.0;
 /// Vertical ground reaction (N/kg) above which the data count a foot as on the ground.
@@ -125,6 +136,7 @@ impl WalkingData {
         model: &LegSpec,
         subject_mass_kg: f64,
         pelvic_tilt_rad: Option<f64>,
+        sole_modulus_pa: Option<f64>,
     ) -> Result<Self, String> {
         let c = &gait.cycle;
         let need = |n: &str| c.kinetic(n).cloned().ok_or_else(|| format!("the gait data have no `{n}` column"));
@@ -150,34 +162,62 @@ impl WalkingData {
             stance_pct,
             belt_speed_m_s: 0.0,
         };
-        let depth = |pct: f64| -> Result<(f64, f64), String> {
-            let t = pct / 100.0 * w.gait.stride_s;
-            let (h, k, a) = (w.thigh_at(t).value, w.gait.knee_at(t).value, w.gait.ankle_at(t).value);
-            let p = foot_points_at(model, h, k, a)
-                .ok_or_else(|| format!("the leg cannot take the data's pose at {pct:.1} % (loop or soles)"))?;
-            Ok((-p.lowest.z, p.ankle.x))
-        };
-        let (mut pcts, mut pelvis) = (Vec::with_capacity(PELVIS_SAMPLES), Vec::with_capacity(PELVIS_SAMPLES));
-        for i in 0..PELVIS_SAMPLES {
-            let pct = i as f64 * 100.0 / PELVIS_SAMPLES as f64;
-            pcts.push(pct);
-            // The hip is as high as the feet on the ground reach, each weighted by the load it
-            // carries (a foot touching down or pushing off carries little; the swing foot none).
-            let (this, other) = (depth(pct)?.0, depth(pct + 50.0)?.0);
-            let on = |p: f64| w.grf.at(p) > STANCE_THRESHOLD_N_PER_KG;
-            pelvis.push(match (on(pct), on(pct + 50.0)) {
-                (true, true) => this.min(other),
-                (true, false) => this,
-                (false, true) => other,
-                (false, false) => this.max(other),
-            });
-        }
+
+        let pcts: Vec<f64> = (0..PELVIS_SAMPLES).map(|i| i as f64 * 100.0 / PELVIS_SAMPLES as f64).collect();
+        let pelvis =
+            pcts.iter().map(|&p| w.pelvis_height_sample(model, sole_modulus_pa, p)).collect::<Result<Vec<_>, _>>()?;
         let pelvis = FourierSeries::fit(&pcts, &pelvis, 100.0, PELVIS_HARMONICS);
         let (hs, to) = stance_pct;
         let stance_s = ((to - hs).rem_euclid(100.0)) / 100.0 * w.gait.stride_s;
         let belt = w.stance_sweep_m(model)? / stance_s;
         (w.pelvis, w.belt_speed_m_s) = (pelvis, belt);
         Ok(w)
+    }
+
+    /// The hip's height above the ground the data imply at `pct` (m), before smoothing: each
+    /// foot on the ground (the data's ground reaction above [`STANCE_THRESHOLD_N_PER_KG`])
+    /// reaches down from the hip as far as the leg's geometry at the data's angles allows,
+    /// less the static sink of its sole under the data's load on that foot (the compliant
+    /// law's, `sole_modulus_pa`; none on rigid contacts). With both feet down this leg's reach
+    /// holds the hip once its foot carries [`THIS_LEG_HOLDS_N_PER_KG`] (blended linearly from
+    /// the other's below that, so the height is continuous through heel strike and toe-off):
+    /// this leg is a body and the other is not, and the data's angles on a leg of other
+    /// proportions than the subject's do not make the two reaches agree (holding the hip at
+    /// the lower one pressed subject 02's landing leg 4 cm into the belt; at the load-weighted
+    /// mean, subject 01's overground cycle on the 1.75 m leg landed 10 % of the stride late). A foot in swing keeps [`SWING_CLEARANCE_M`] (a half sine over the swing,
+    /// 0 at toe-off and heel strike) between itself and the ground: where the leg's geometry
+    /// at the data's angles would put the swing foot lower, the hip is raised.
+    fn pelvis_height_sample(&self, model: &LegSpec, sole_modulus_pa: Option<f64>, pct: f64) -> Result<f64, String> {
+        let (hs, to) = self.stance_pct;
+        let swing_len = (hs - to).rem_euclid(100.0);
+        let foot = |p: f64| -> Result<(Option<(f64, f64)>, f64), String> {
+            let t = p / 100.0 * self.gait.stride_s;
+            let (h, k, a) = (self.thigh_at(t).value, self.gait.knee_at(t).value, self.gait.ankle_at(t).value);
+            let (_, contacts) = sole_contacts_at(model, h, k, a)
+                .filter(|c| !c.1.is_empty())
+                .ok_or_else(|| format!("the leg cannot take the data's pose at {p:.1} % (loop or soles)"))?;
+            let reach = -contacts.iter().map(|c| c.0.z).fold(f64::INFINITY, f64::min);
+            let load = self.grf.at(p);
+            if load > STANCE_THRESHOLD_N_PER_KG {
+                let sink = sole_modulus_pa.map_or(0.0, |e| static_sink_m(e, &contacts, load * self.subject_mass_kg));
+                return Ok((Some((reach - sink, load)), reach));
+            }
+            let x = (p - to).rem_euclid(100.0);
+            let clearance =
+                if x < swing_len { SWING_CLEARANCE_M * (std::f64::consts::PI * x / swing_len).sin() } else { 0.0 };
+            Ok((None, reach + clearance))
+        };
+        let (this, other) = (foot(pct)?, foot(pct + 50.0)?);
+        let held = match (this.0, other.0) {
+            (Some((a, la)), Some((b, _))) => {
+                let w = (la / THIS_LEG_HOLDS_N_PER_KG).min(1.0);
+                w * a + (1.0 - w) * b
+            }
+            (Some((a, _)), None) | (None, Some((a, _))) => a,
+            (None, None) => this.1.max(other.1),
+        };
+        let swing_needs = |f: (Option<(f64, f64)>, f64)| if f.0.is_none() { f.1 } else { f64::MIN };
+        Ok(held.max(swing_needs(this)).max(swing_needs(other)))
     }
 
     /// How far the sole travels backwards under the hip over the stance (m): in
@@ -319,7 +359,7 @@ mod tests {
         let gait = GaitReference { cycle, stride_s: stride, source: trial.into(), sha256: String::new() };
         let text = crate::leg::BUILTIN_URDFS[0].1;
         let model = LegSpec::from_urdf_with(text, &LegOptions { ankle_free: true, ..Default::default() }).unwrap();
-        WalkingData::new(gait, &model, 75.0, Some(10f64.to_radians())).unwrap()
+        WalkingData::new(gait, &model, 75.0, Some(10f64.to_radians()), Some(1e7)).unwrap()
     }
 
     #[test]

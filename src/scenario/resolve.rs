@@ -276,43 +276,54 @@ impl Ctx<'_> {
     ) -> Result<Arc<KneeForceReference>> {
         let f = &self.s.file;
         let with_hip = mode != HipMode::Fixed;
-        let assist = walking.as_ref().map(|w| (w.clone(), f.reference.assist_fraction));
         let key = format!(
-            "{}|{:?}|{}|{}|{}|{with_hip}|{:?}|{}",
+            "{}|{:?}|{}|{}|{}|{with_hip}|{}",
             self.file.leg.urdf_sha256.clone().unwrap_or_default(),
             (&f.leg.knee_joint, f.controller.nominal_leg.mass_scale.unwrap_or(f.leg.mass_scale)),
             gait.sha256,
             f.reference.harmonics,
             gait.stride_s.to_bits(),
-            assist.as_ref().map(|a| (a.1.to_bits(), a.0.subject_mass_kg.to_bits())),
             self.file.controller.nominal_leg.urdf_sha256.clone().unwrap_or_default(),
         );
         let model = nominal.clone();
-        let fit = self.res.cascade(key, || {
-            KneeForceReference::inverse_dynamics_fit(&gait, &model, with_hip, assist.as_ref().map(|a| (&*a.0, a.1)))
-        })?;
+        let fit = self.res.cascade(key, || KneeForceReference::inverse_dynamics_fit(&gait, &model, with_hip))?;
+        let fraction = f.reference.assist_fraction;
+        let stance = match walking {
+            Some(w) if fraction != 0.0 => {
+                let a = KneeForceReference::assist_fit(&gait, &model, &w, fraction).map_err(|e| match e {
+                    Error::Input { message, .. } => Error::input(self.src(), "reference.assist_fraction", message),
+                    other => other,
+                })?;
+                Some((w, Some(Arc::new(a))))
+            }
+            Some(w) => Some((w, None)),
+            None => None,
+        };
         // The cascade's model of the seal friction: the plant's levels with its own smooth sign.
         let fr = FrictionParams {
             smoothing_velocity_m_s: f.reference.friction_smoothing_velocity_m_s,
             ..f.friction.clone()
         };
-        Ok(Arc::new(KneeForceReference::new(gait, model, fr, mode == HipMode::Driven, fit, walking)))
+        Ok(Arc::new(KneeForceReference::new(gait, model, fr, mode == HipMode::Driven, fit, stance)))
     }
 
     /// The walking data of a gait on the carriage (cached per gait, leg and subject).
     fn walking(&mut self, gait: &GaitReference, model: &Arc<LegSpec>) -> Result<Arc<WalkingData>> {
         let (subject, tilt) = (self.s.file.hip.subject_mass(), self.s.file.hip.pelvic_tilt_deg.map(f64::to_radians));
+        let g = &self.s.file.ground;
+        let sole = (g.enabled && g.contact == crate::plant::ContactLaw::Compliant).then_some(g.contact_modulus_pa);
         let key = format!(
-            "{}|{}|{}|{:?}|{:p}",
+            "{}|{}|{}|{:?}|{:?}|{:p}",
             gait.sha256,
             gait.stride_s.to_bits(),
             subject.to_bits(),
             tilt.map(f64::to_bits),
+            sole.map(f64::to_bits),
             Arc::as_ptr(model)
         );
         let src = self.src().to_string();
         let w = self.res.walking(key, || {
-            WalkingData::new(gait.clone(), model, subject, tilt)
+            WalkingData::new(gait.clone(), model, subject, tilt, sole)
                 .map_err(|m| Error::input(&src, format!("reference.gait ({})", gait.source), m))
         })?;
         if let Some(v) = self.s.file.ground.belt_speed_m_s.filter(|_| self.s.file.ground.enabled) {

@@ -78,6 +78,8 @@ pub(crate) struct Held {
     /// Cuff force over the step (N, `human.mode = "cuff"`), for coupled mechanics.
     pub cuff_force_n: f64,
     pub output: Option<ControlOutput>,
+    /// The leg's stance and swing from its contact (loaded walking on the ground).
+    pub events: Option<crate::human::GaitEvents>,
 }
 
 /// The sampled controller's side of the loop: sensors, hold, and the controller (or none when
@@ -201,7 +203,7 @@ impl Simulation {
         let n = PLANT_LEN + controller_names.len();
         let state = State { hyd: sc.cylinder.initial_state(), ..Default::default() };
         let output = matches!(control, ControlBlock::Sampled(_)).then(ControlOutput::default);
-        let held = Held { output, ..Default::default() };
+        let held = Held { output, events: Self::gait_events(&sc), ..Default::default() };
         Ok(Self {
             controller_state: vec![0.0; controller_names.len()],
             packed: vec![0.0; n],
@@ -320,6 +322,20 @@ impl Simulation {
         if self.k == 0 {
             self.start_hydraulics();
         }
+        let t = self.t_s();
+        if let (Some(e), Some(c)) = (self.held.events.as_mut(), self.plant.contact_row()) {
+            e.update(t, c.ground_reaction_vertical_n);
+        }
+    }
+
+    /// The contact detector of a walking run on the ground (see `human::events`).
+    fn gait_events(sc: &Model) -> Option<crate::human::GaitEvents> {
+        let leg = sc.leg()?;
+        let body = leg.body.as_ref()?;
+        let crate::human::BodyTargets::Walking(w) = &body.targets else { return None };
+        leg.ground.as_ref()?;
+        let p = crate::human::EventParams::for_subject(w.subject_mass_kg, w.gait.stride_s);
+        Some(crate::human::GaitEvents::new(p))
     }
 
     /// Step 0: put the hydraulics on the gait trajectory when the run starts on it.
@@ -481,7 +497,11 @@ impl Simulation {
     fn body_forces(&self, t: f64) -> Option<crate::human::BodyForces> {
         let b = self.sc.leg()?.body.as_ref()?;
         let state = self.plant.body_state()?;
-        Some(crate::human::body_forces(&b.hip, &b.wearer, &b.targets.at(t), &state))
+        let mut sample = b.targets.at(t);
+        if let (Some(e), crate::human::BodyTargets::Walking(w)) = (&self.held.events, &b.targets) {
+            sample.other_share = e.other_share(t, w);
+        }
+        Some(crate::human::body_forces(&b.hip, &b.wearer, &sample, &state))
     }
 
     /// Advance one step with the run's own controller; the row of the step's start goes to

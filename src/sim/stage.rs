@@ -35,7 +35,7 @@ pub(super) struct Dynamics<'a> {
 impl Dynamics<'_> {
     /// Desired force at `t` with the held outer-loop force.
     pub fn reference_at(&self, t: f64, held: &Held) -> RefSample {
-        self.sc.reference.force_at(t, held.pd_force_n)
+        self.sc.reference.force_at(t, held.pd_force_n, held.events.map(|e| e.stance_weight(t)))
     }
 
     /// The gait cascade's outer-loop force for a knee reading at `t` (0 without a cascade).

@@ -192,7 +192,7 @@ fn feedforward_is_inverse_dynamics_plus_exact_friction() {
         let t = i as f64 * 1.1 / 2000.0 + 1e-4;
         let exact = exact_at(t);
         worst_old = worst_old.max((old.eval(t).0 - exact_plant(t)).abs());
-        let ff = k.feedforward_at(t);
+        let ff = k.feedforward_at(t, None);
         worst = worst.max((ff.value - exact).abs());
         peak = peak.max(exact.abs());
         // The friction's derivatives against central differences of the friction alone.

@@ -92,46 +92,81 @@ fn subject_with_a_user_urdf_warns_and_a_contradiction_is_refused() {
     assert!(e.contains("subject.leg_length_m"), "{e}");
 }
 
-/// Subject 01's three treadmill trials with his own numbers (trials.csv: mass, stature, leg
-/// length, belt speed, stride time) and nothing else changed meet the walking figures
-/// but the extensor peak's size; subject 02's do not yet (README table) but a collapse is
-/// always flagged.
+/// The six shipped treadmill trials with each subject's own numbers (trials.csv: mass,
+/// stature, leg length, belt speed, stride time; subject 02's stride time is an estimate) and
+/// nothing else changed meet the walking figures; subject 02 at T05, whose belt runs
+/// 16 % faster than her leg's stance sweep at the estimated stride time, walks with the
+/// ground reaction's shape and size but not the stance knee moment's (README table).
 #[test]
-fn subject_01_walks_on_the_treadmill_at_three_speeds() {
-    // (trial, belt m/s, stride s). Measured: stance 0.578 / 0.542 / 0.533; GRF r 0.971 /
-    // 0.951 / 0.957, 10 Hz peak 1.16 / 1.42 / 1.37 x; unfiltered peak 885 / 1172 / 1166 N
-    // against the data's 745 / 766 / 822; stance knee moment r 0.926 / 0.899 / 0.912; flexor
-    // peak -41 / -41 / -43 N m against -44 / -48 / -52; extensor 7 / 32 / 39 against 2 / 15 / 21
-    // (outside 50 % at T05 and T06: not asserted).
-    for (trial, belt, stride) in [("t03", 0.85, 1.3833), ("t05", 1.21, 1.0633), ("t06", 1.40, 1.0067)] {
+fn the_shipped_treadmill_trials_walk_with_each_subjects_numbers() {
+    // Measured (subject trial: stance; GRF r, 10 Hz peak ratio; unfiltered peak / data's;
+    // knee moment r; extensor, flexor peak / data's, N m):
+    // 01 T03: 0.581; 0.987, 1.11; 824 / 745; 0.962; -5 / 2, -41 / -44
+    // 01 T05: 0.551; 0.984, 1.10; 845 / 766; 0.964; 8 / 15, -41 / -48
+    // 01 T06: 0.539; 0.980, 1.08; 902 / 822; 0.963; 13 / 21, -41 / -52
+    // 02 T03: 0.619; 0.985, 1.17; 622 / 527; 0.959; -17 / -10, -41 / -46
+    // 02 T05: 0.569; 0.918, 1.17; 759 / 543; 0.097; -1 / -13, -6 / -43 (knee moment not met)
+    // 02 T06: 0.549; 0.949, 1.19; 742 / 562; 0.864; -6 / 2, -38 / -49
+    let trials = [
+        ("01", "t03", 0.85, 1.3833, true),
+        ("01", "t05", 1.21, 1.0633, true),
+        ("01", "t06", 1.40, 1.0067, true),
+        ("02", "t03", 0.88, 1.21, true),
+        ("02", "t05", 1.25, 1.01, false),
+        ("02", "t06", 1.44, 0.94, true),
+    ];
+    for (subject, trial, belt, stride, moment) in trials {
+        let who = if subject == "01" {
+            ["subject.mass_kg=74.3", "subject.height_m=1.725", "subject.leg_length_m=0.89", "subject.sex=\"male\""]
+        } else {
+            ["subject.mass_kg=52.9", "subject.height_m=1.668", "subject.leg_length_m=0.865", "subject.sex=\"female\""]
+        };
         let dur = (6.0 * stride / 0.00025f64).round() * 0.00025;
-        let sets = [
-            format!("reference.gait_trial=\"wbds01_treadmill_{trial}\""),
+        let mut sets = vec![
+            format!("reference.gait_trial=\"wbds{subject}_treadmill_{trial}\""),
             format!("ground.belt_speed_m_s={belt}"),
             format!("sim.duration_s={dur}"),
             format!("metrics.settle_s={stride}"),
         ];
+        sets.extend(who.iter().map(|w| w.to_string()));
         let s = shipped("treadmill_subject.toml", &sets.iter().map(String::as_str).collect::<Vec<_>>());
         let out = run_scenario(&s).unwrap();
         let c = out.summary.contact.unwrap();
         let d = c.dataset.unwrap();
-        assert!(c.not_walking.is_empty(), "{trial}: {:?}", c.not_walking);
-        assert!((0.45..=0.70).contains(&c.stance_fraction), "{trial}: stance {}", c.stance_fraction);
+        let at = format!("{subject} {trial}");
+        assert!(c.not_walking.is_empty(), "{at}: {:?}", c.not_walking);
+        assert!((0.45..=0.70).contains(&c.stance_fraction), "{at}: stance {}", c.stance_fraction);
         assert!(
             d.grf_correlation >= 0.8 && d.grf_peak_ratio <= 1.5,
-            "{trial}: GRF {} x{}",
+            "{at}: GRF {} x{}",
             d.grf_correlation,
             d.grf_peak_ratio
         );
         assert!(
             c.peak_ground_reaction_n <= 2.0 * d.data_peak_ground_reaction_n,
-            "{trial}: peak {}",
+            "{at}: peak {}",
             c.peak_ground_reaction_n
         );
-        assert!(d.knee_moment_stance_correlation >= 0.7, "{trial}: knee moment r {}", d.knee_moment_stance_correlation);
+        if !moment {
+            continue;
+        }
+        assert!(d.knee_moment_stance_correlation >= 0.7, "{at}: knee moment r {}", d.knee_moment_stance_correlation);
+        let within = |sim: f64, data: f64| (0.5..=1.5).contains(&(sim / data));
         if d.data_flexor_peak_nm < -10.0 {
-            let r = d.flexor_peak_nm / d.data_flexor_peak_nm;
-            assert!((0.5..=1.5).contains(&r), "{trial}: flexor {} vs {}", d.flexor_peak_nm, d.data_flexor_peak_nm);
+            assert!(
+                within(d.flexor_peak_nm, d.data_flexor_peak_nm),
+                "{at}: flexor {} vs {}",
+                d.flexor_peak_nm,
+                d.data_flexor_peak_nm
+            );
+        }
+        if d.data_extensor_peak_nm > 10.0 {
+            assert!(
+                within(d.extensor_peak_nm, d.data_extensor_peak_nm),
+                "{at}: extensor {} vs {}",
+                d.extensor_peak_nm,
+                d.data_extensor_peak_nm
+            );
         }
     }
 }
