@@ -39,6 +39,8 @@ pub struct ContactRow {
     pub ankle_angle_deg: f64,
     /// Hip height above the ground (m; the hip's z when not on the carriage).
     pub pelvis_height_m: f64,
+    /// The pelvis's fore-aft displacement from its start (m, +x forward; 0 off the carriage).
+    pub pelvis_x_m: f64,
     /// The virtual other leg's force on the pelvis (N, up).
     pub support_force_n: f64,
     /// The wearer's knee torque (N m, flexion positive).
@@ -144,13 +146,14 @@ pub const LEG_COLUMNS: [&str; 6] = [
 ];
 
 /// Names of the contact columns.
-pub const CONTACT_COLUMNS: [&str; 8] = [
+pub const CONTACT_COLUMNS: [&str; 9] = [
     "ground_reaction_vertical_n",
     "ground_reaction_horizontal_n",
     "contact_penetration_m",
     "knee_moment_nm",
     "ankle_angle_deg",
     "pelvis_height_m",
+    "pelvis_x_m",
     "support_force_n",
     "wearer_knee_torque_nm",
 ];
@@ -227,6 +230,7 @@ impl Row {
                 c.knee_moment_nm,
                 c.ankle_angle_deg,
                 c.pelvis_height_m,
+                c.pelvis_x_m,
                 c.support_force_n,
                 c.wearer_knee_torque_nm,
             ]);

@@ -7,7 +7,7 @@
 //! hip torque (flexion +)    = K_h (h_d - h) + C_h (h_d' - h') + s_h * M_hip,data
 //! knee torque (flexion +)   = K_k (k_d - k) + C_k (k_d' - k') - s_k * M_knee,data   (data: extensor +)
 //! ankle torque (dorsi +)    = K_a (a_d - a) + C_a (a_d' - a') - s_a * M_ankle,data  (data: plantarflexor +)
-//! tether force (x)          = -K_t x - C_t x'
+//! tether force (x)          = K_t (x_d - x) + C_t (x_d' - x')
 //! support force (z, up)     = max(0, s_o * [ m_subject g + K_s (z_d - z) + C_s (z_d' - z') ])
 //! ```
 //! `s_o` is the other leg's share of the support (the data's `grf_other / (grf_this +
@@ -75,10 +75,15 @@ pub struct HipParams {
     pub moment_share: f64,
     /// The hip is locked at its initial angle (static tests). Default false.
     pub locked: bool,
-    /// Horizontal tether of the pelvis to its start (N/m). Default 200 (weak: 0.3 Hz with
-    /// 60 kg). >= 0.
+    /// Horizontal tether of the pelvis to its fore-aft target (N/m): its start, moving back and
+    /// forth when the belt and the leg's stance sweep differ (`BodySetup::pelvis_drift_m_s`).
+    /// Default 1000 (0.65 Hz with 60 kg). A weaker tether lets the compliant hip yield to a
+    /// belt faster than the leg sweeps instead of the pelvis following the foot: at 200 N/m
+    /// and 300 N s/m, 8 of the 18 shipped treadmill trials with the belt 10-20 % off the sweep
+    /// lost the stance knee moment (its terminal-stance flexor peak shrinks with the
+    /// mismatch); at 1000 / 1000 none. >= 0.
     pub tether_stiffness_n_per_m: f64,
-    /// Tether damper (N s/m). Default 300. >= 0.
+    /// Tether damper (N s/m). Default 1000 (about 2 times critical with 60 kg). >= 0.
     pub tether_damping_n_s_per_m: f64,
     /// The pelvis cannot move horizontally (static tests). Default false.
     pub tether_locked: bool,
@@ -125,8 +130,8 @@ impl Default for HipParams {
             damping_nm_s_per_rad: 30.0,
             moment_share: 1.0,
             locked: false,
-            tether_stiffness_n_per_m: 200.0,
-            tether_damping_n_s_per_m: 300.0,
+            tether_stiffness_n_per_m: 1000.0,
+            tether_damping_n_s_per_m: 1000.0,
             tether_locked: false,
             support_stiffness_n_per_m: 20000.0,
             support_damping_n_s_per_m: 3000.0,
@@ -221,7 +226,8 @@ pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s:
         + share
             * (hip.support_stiffness_n_per_m * (d.pelvis_height_m - s.pelvis[1])
                 + hip.support_damping_n_s_per_m * (d.pelvis_rate_m_s - s.pelvis_rate[1]));
-    let tether = -hip.tether_stiffness_n_per_m * s.pelvis[0] - hip.tether_damping_n_s_per_m * s.pelvis_rate[0];
+    let tether = hip.tether_stiffness_n_per_m * (d.pelvis_x_m - s.pelvis[0])
+        + hip.tether_damping_n_s_per_m * (d.pelvis_x_rate_m_s - s.pelvis_rate[0]);
     BodyForces {
         hip_torque_nm: imp(hip.stiffness_nm_per_rad, hip.damping_nm_s_per_rad, &d.hip, s.hip)
             + hip.moment_share * d.hip_moment_nm,
@@ -263,6 +269,10 @@ pub struct BodySetup {
     pub targets: BodyTargets,
     /// Mass the pelvis carries (kg).
     pub pelvis_mass_kg: f64,
+    /// How much faster the belt runs than the leg's stance sweeps at the data's angles (m/s;
+    /// 0 at the default belt speed): the pelvis's fore-aft target carries the difference
+    /// (`WalkingData::pelvis_x_at`).
+    pub pelvis_drift_m_s: f64,
     /// Initial ankle dorsiflexion (rad).
     pub ankle_rad: f64,
 }

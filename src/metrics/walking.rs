@@ -37,10 +37,16 @@ pub const NO_CONTACT_N: f64 = 1.0;
 pub const NOT_WALKING_PELVIS_FRACTION: f64 = 0.8;
 /// Not walking: the mean horizontal ground reaction below this fraction of the mean vertical
 /// one (the belt drags the leg back; walking at a steady speed, braking and propulsion
-/// balance over a stride: -0.03..+0.06 on the shipped trials, -0.03 with the belt 16 % faster
-/// than the leg's stance sweep (subject 02 at T05); -0.068 with it 41 % faster, -0.45 in a
-/// collapse onto the belt).
+/// balance over a stride: 0.00..+0.07 on the shipped trials; -0.45 in a collapse onto the
+/// belt; since the pelvis carries a belt-sweep difference, a belt too fast shows in
+/// [`NOT_WALKING_PELVIS_RANGE_M`] instead).
 pub const NOT_WALKING_DRAG_RATIO: f64 = -0.05;
+/// Not walking: the pelvis's fore-aft range after the run-in over this (m). A person's pelvis
+/// moves a few centimetres fore-aft over a treadmill stride; on the model's carriage it also
+/// carries a belt the leg cannot sweep (see `human::body`'s tether): 0.011-0.113 m on the
+/// shipped trials (subject 02's T05, its belt 16 % faster than her leg sweeps, is the 0.113),
+/// 0.33 m on `gait_treadmill.toml` with the belt 41 % faster than the leg.
+pub const NOT_WALKING_PELVIS_RANGE_M: f64 = 0.2;
 /// Low-pass cut-off of the kinetics comparison (Hz).
 pub const KINETICS_LOWPASS_HZ: f64 = 10.0;
 const BINS: usize = 100;
@@ -105,7 +111,8 @@ pub struct ContactSummary {
     /// only): stance over [`NOT_WALKING_STANCE_FRACTION`] or under
     /// [`NOT_WALKING_MIN_STANCE_FRACTION`], a stride whose swing foot never
     /// clears the ground, the pelvis fallen below [`NOT_WALKING_PELVIS_FRACTION`] of the data's
-    /// lowest hip height, or the belt dragging the leg (the mean horizontal ground reaction
+    /// lowest hip height, riding more than [`NOT_WALKING_PELVIS_RANGE_M`] fore-aft, or the belt
+    /// dragging the leg (the mean horizontal ground reaction
     /// under [`NOT_WALKING_DRAG_RATIO`] of the vertical one). `criteria.max_not_walking_flags
     /// = 0` fails such a run.
     #[serde(default)]
@@ -113,6 +120,10 @@ pub struct ContactSummary {
     /// The pelvic tilt the run assumed (loaded walking only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pelvic_tilt: Option<String>,
+    /// The pelvis's fore-aft range after the run-in (m; loaded walking only): a few cm when
+    /// the belt and the leg's stance sweep agree (see [`NOT_WALKING_PELVIS_RANGE_M`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pelvis_fore_aft_range_m: Option<f64>,
 }
 
 /// Accumulates the contact figures row by row.
@@ -136,6 +147,8 @@ pub struct WalkingMetrics {
     grf_sums: [f64; 2],
     /// Lowest hip height after the run-in (m).
     min_pelvis_m: f64,
+    /// The pelvis's fore-aft (min, max) after the run-in (m).
+    pelvis_x_range_m: (f64, f64),
     /// The stride being read, the start of its current time off the ground and its longest
     /// (s), and the strides that never left the ground.
     clearance: Clearance,
@@ -206,6 +219,7 @@ impl WalkingMetrics {
             span_s: None,
             grf_sums: [0.0; 2],
             min_pelvis_m: f64::INFINITY,
+            pelvis_x_range_m: (f64::INFINITY, f64::NEG_INFINITY),
             clearance: Clearance::default(),
         }
     }
@@ -251,6 +265,14 @@ impl WalkingMetrics {
                 lowest
             ));
         }
+        let range = self.pelvis_x_range_m.1 - self.pelvis_x_range_m.0;
+        if range > NOT_WALKING_PELVIS_RANGE_M {
+            why.push(format!(
+                "the pelvis rides {range:.2} m back and forth on the belt (a person's moves a few cm; flagged over \
+                 {NOT_WALKING_PELVIS_RANGE_M} m): the belt runs far faster or slower than the leg sweeps at the \
+                 data's angles and stride time"
+            ));
+        }
         let ratio = self.grf_sums[0] / self.grf_sums[1];
         if ratio < NOT_WALKING_DRAG_RATIO {
             why.push(format!(
@@ -277,6 +299,8 @@ impl WalkingMetrics {
             dataset: self.compare(),
             not_walking: self.not_walking(frac),
             pelvic_tilt: self.data.as_ref().map(|d| d.pelvic_tilt.describe()),
+            pelvis_fore_aft_range_m: (self.data.is_some() && self.rows_after > 0)
+                .then_some(self.pelvis_x_range_m.1 - self.pelvis_x_range_m.0),
         }
     }
 
@@ -385,6 +409,8 @@ impl RecordSink for WalkingMetrics {
         self.grf_sums[0] += c.ground_reaction_horizontal_n;
         self.grf_sums[1] += c.ground_reaction_vertical_n;
         self.min_pelvis_m = self.min_pelvis_m.min(c.pelvis_height_m);
+        let x = &mut self.pelvis_x_range_m;
+        (x.0, x.1) = (x.0.min(c.pelvis_x_m), x.1.max(c.pelvis_x_m));
         if let Some(stride) = self.stride_s {
             self.clearance.row(r.t_s, c.ground_reaction_vertical_n, stride);
         }

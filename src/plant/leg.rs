@@ -503,6 +503,7 @@ impl Plant for LegPlant {
             knee_moment_nm: self.leg.lab_knee_moment_nm(),
             ankle_angle_deg: self.leg.ankle_angle_rad().to_degrees(),
             pelvis_height_m: p[1] - self.ground_height_m.unwrap_or(0.0),
+            pelvis_x_m: p[0],
             support_force_n: body.pelvis_force_n[1],
             wearer_knee_torque_nm: body.knee_torque_nm,
         })

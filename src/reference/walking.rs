@@ -68,6 +68,11 @@ pub struct WalkingSample {
     pub pelvis_rate_m_s: f64,
     /// Stance weight of this leg (0 swing .. 1 stance).
     pub stance_weight: f64,
+    /// The pelvis's fore-aft target (m; 0 unless the belt and the leg's sweep differ, set by
+    /// the loop from [`WalkingData::pelvis_x_at`]).
+    pub pelvis_x_m: f64,
+    /// Rate of `pelvis_x_m` (m/s).
+    pub pelvis_x_rate_m_s: f64,
 }
 
 /// Pelvic tilt assumed when neither the scenario nor the gait data give one (deg).
@@ -124,6 +129,9 @@ pub struct WalkingData {
     pub stance_pct: (f64, f64),
     /// Belt speed the stance kinematics imply (m/s, the surface moving to -x).
     pub belt_speed_m_s: f64,
+    /// The pelvis's fore-aft path per m/s of belt-sweep difference (m per m/s) against % of
+    /// the cycle: -t over the stance, back over the swing, zero mean.
+    drift: FourierSeries,
 }
 
 impl WalkingData {
@@ -161,6 +169,7 @@ impl WalkingData {
             pelvis: FourierSeries::fit(&[0.0, 50.0, 25.0], &[0.0; 3], 100.0, 1),
             stance_pct,
             belt_speed_m_s: 0.0,
+            drift: FourierSeries::fit(&[0.0, 50.0, 25.0], &[0.0; 3], 100.0, 1),
         };
 
         let pcts: Vec<f64> = (0..PELVIS_SAMPLES).map(|i| i as f64 * 100.0 / PELVIS_SAMPLES as f64).collect();
@@ -171,6 +180,7 @@ impl WalkingData {
         let stance_s = ((to - hs).rem_euclid(100.0)) / 100.0 * w.gait.stride_s;
         let belt = w.stance_sweep_m(model)? / stance_s;
         (w.pelvis, w.belt_speed_m_s) = (pelvis, belt);
+        w.drift = w.drift_profile();
         Ok(w)
     }
 
@@ -218,6 +228,23 @@ impl WalkingData {
         };
         let swing_needs = |f: (Option<(f64, f64)>, f64)| if f.0.is_none() { f.1 } else { f64::MIN };
         Ok(held.max(swing_needs(this)).max(swing_needs(other)))
+    }
+
+    /// The fore-aft path of the pelvis per m/s of belt-sweep difference (see
+    /// [`Self::pelvis_x_at`]): piecewise linear in time, back over the stance, forward over the
+    /// swing, zero mean, fitted with [`PELVIS_HARMONICS`] (its rate then has no steps).
+    fn drift_profile(&self) -> FourierSeries {
+        let (hs, to) = self.stance_pct;
+        let stance = (to - hs).rem_euclid(100.0) / 100.0;
+        let t = self.gait.stride_s;
+        let path = |pct: f64| {
+            let x = (pct - hs).rem_euclid(100.0) / 100.0;
+            let back = if x < stance { -x * t } else { -stance * t + stance / (1.0 - stance) * (x - stance) * t };
+            back + stance * t / 2.0
+        };
+        let pcts: Vec<f64> = (0..PELVIS_SAMPLES).map(|i| i as f64 * 100.0 / PELVIS_SAMPLES as f64).collect();
+        let xs: Vec<f64> = pcts.iter().map(|&p| path(p)).collect();
+        FourierSeries::fit(&pcts, &xs, 100.0, PELVIS_HARMONICS)
     }
 
     /// How far the sole travels backwards under the hip over the stance (m): in
@@ -302,7 +329,21 @@ impl WalkingData {
             pelvis_height_m: pelvis,
             pelvis_rate_m_s: rate_per_pct * 100.0 / self.gait.stride_s,
             stance_weight: self.stance_weight_at_pct(pct),
+            pelvis_x_m: 0.0,
+            pelvis_x_rate_m_s: 0.0,
         }
+    }
+
+    /// The pelvis's fore-aft target (m, +x forward, zero mean over the cycle) and its rate
+    /// (m/s) at `t_s` for a belt that runs `drift_m_s` faster than the leg's stance sweep
+    /// ([`Self::belt_speed_m_s`]): it moves back at `drift_m_s` over the data's stance and
+    /// forward again over the swing (see `human::body`), smoothed by [`PELVIS_HARMONICS`].
+    pub fn pelvis_x_at(&self, t_s: f64, drift_m_s: f64) -> (f64, f64) {
+        if drift_m_s == 0.0 {
+            return (0.0, 0.0);
+        }
+        let (x, rate_per_pct, _) = self.drift.eval(self.pct_at(t_s));
+        (drift_m_s * x, drift_m_s * rate_per_pct * 100.0 / self.gait.stride_s)
     }
 
     /// The lowest hip height over the cycle the data imply (m).

@@ -533,7 +533,18 @@ fn body_setup(
         ));
     }
     let ankle_rad = targets.at(0.0).ankle.value;
-    let body = BodySetup { hip: f.hip.clone(), wearer: f.wearer.clone(), targets, pelvis_mass_kg, ankle_rad };
+    let pelvis_drift_m_s = match &targets {
+        BodyTargets::Walking(w) => belt_speed_m_s - w.belt_speed_m_s,
+        BodyTargets::Pose(_) => 0.0,
+    };
+    let body = BodySetup {
+        hip: f.hip.clone(),
+        wearer: f.wearer.clone(),
+        targets,
+        pelvis_mass_kg,
+        ankle_rad,
+        pelvis_drift_m_s,
+    };
     Ok((Some(ground), Some(Arc::new(body))))
 }
 

@@ -498,8 +498,11 @@ impl Simulation {
         let b = self.sc.leg()?.body.as_ref()?;
         let state = self.plant.body_state()?;
         let mut sample = b.targets.at(t);
-        if let (Some(e), crate::human::BodyTargets::Walking(w)) = (&self.held.events, &b.targets) {
-            sample.other_share = e.other_share(t, w);
+        if let crate::human::BodyTargets::Walking(w) = &b.targets {
+            if let Some(e) = &self.held.events {
+                sample.other_share = e.other_share(t, w);
+            }
+            (sample.pelvis_x_m, sample.pelvis_x_rate_m_s) = w.pelvis_x_at(t, b.pelvis_drift_m_s);
         }
         Some(crate::human::body_forces(&b.hip, &b.wearer, &sample, &state))
     }
