@@ -1,7 +1,7 @@
 //! The wearer's body in loaded walking (issue 12): the hip on a spring-damper about the data's
-//! angle plus a share of the data's hip moment, the pelvis on a weak horizontal tether and a
-//! "virtual other leg" that supports it, and the wearer's knee and ankle as impedances about
-//! the data's angles plus optional shares of the data's moments.
+//! angle plus a share of the data's hip moment, the pelvis on a horizontal tether (to a
+//! fore-aft target) and a "virtual other leg" that supports it, and the wearer's knee and
+//! ankle as impedances about the data's angles plus optional shares of the data's moments.
 //!
 //! ```text
 //! hip torque (flexion +)    = K_h (h_d - h) + C_h (h_d' - h') + s_h * M_hip,data
