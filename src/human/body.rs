@@ -8,14 +8,20 @@
 //! knee torque (flexion +)   = K_k (k_d - k) + C_k (k_d' - k') - s_k * M_knee,data   (data: extensor +)
 //! ankle torque (dorsi +)    = K_a (a_d - a) + C_a (a_d' - a') - s_a * M_ankle,data  (data: plantarflexor +)
 //! tether force (x)          = K_t (x_d - x) + C_t (x_d' - x')
-//! support force (z, up)     = max(0, s_o * [ m_subject g + K_s (z_d - z) + C_s (z_d' - z') ])
+//! support force (z, up)     = max(0, s_o * [ m_subject (g + z_d'') + K_s (z_d - z) + C_s (z_d' - z') ])
 //! ```
-//! `s_o` is the other leg's share of the support (the data's `grf_other / (grf_this +
-//! grf_other)`: 1 in this leg's swing, 0 in its single support; `hip.other_leg_share` when
-//! set), `m_subject g` the subject's weight, and `z_d` the hip height the data imply
-//! (see `reference::WalkingData`). The other leg is a force on the pelvis, not a body; like a
-//! leg it pushes and never pulls (without the clamp its damper pulled the pelvis down onto
-//! the landing foot with up to 1.4 kN and doubled the heel-strike peak of a light subject).
+//! `s_o` is the other leg's share of the support (from the gait events, `human::events`: 1 in
+//! this leg's swing, 0 in its single support, the data's `grf_other / (grf_this + grf_other)`
+//! between; `hip.other_leg_share` when set), `m_subject (g + z_d'')` the subject's weight and
+//! the force that moves the body along the hip height the data imply, `z_d` (see
+//! `reference::WalkingData`; x_d, the pelvis's fore-aft target, is 0 unless the belt and the
+//! leg's sweep differ). The other leg is a force on the pelvis, not a body; like a leg it
+//! pushes and never pulls (without the clamp its damper pulled the pelvis down onto the
+//! landing foot with up to 1.4 kN and doubled the heel-strike peak of a light subject). The
+//! `z_d''` term is what a leg carrying the body along `z_d` pushes beyond the weight; without
+//! it the spring lagged the target by about `m z_d'' / K_s`, about 1 cm before heel strike,
+//! the foot landed 4 % of the stride late and the loading response lost its extensor moment
+//! (subject 01's T05: 6 N m against the data's 15; with it 9).
 
 use crate::reference::WalkingSample;
 use serde::{Deserialize, Serialize};
@@ -98,7 +104,8 @@ pub struct HipParams {
     /// sank stride after stride into a dragged leg. >= 0.
     pub support_damping_n_s_per_m: f64,
     /// What the virtual other leg carries besides its spring: `weight` (its share of the
-    /// subject's weight) or `data` (the other foot's ground reaction in the data, the body's
+    /// subject's weight and of the force that moves the body along the data's hip height) or
+    /// `data` (the other foot's ground reaction in the data, the body's
     /// vertical dynamics included). Default `weight`.
     pub support_force: SupportForce,
     /// A constant share of the support for the other leg (0..=1) instead of the data's phase
@@ -146,7 +153,7 @@ impl Default for HipParams {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SupportForce {
-    /// Its share of the subject's weight.
+    /// Its share of the subject's weight and vertical motion, `m_subject (g + z_d'')`.
     Weight,
     /// The other foot's data ground reaction.
     Data,
@@ -219,7 +226,7 @@ pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s:
     };
     let share = hip.other_leg_share.unwrap_or(d.other_share);
     let base = match hip.support_force {
-        SupportForce::Weight => share * hip.subject_mass() * crate::leg::model::GRAVITY_M_S2,
+        SupportForce::Weight => share * hip.subject_mass() * (crate::leg::model::GRAVITY_M_S2 + d.pelvis_accel_m_s2),
         SupportForce::Data => d.grf_other_n,
     };
     let support = base

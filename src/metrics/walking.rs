@@ -23,8 +23,8 @@ pub const STANCE_CONTACT_N: f64 = 20.0;
 /// Not walking: stance over this fraction of the time after the run-in.
 pub const NOT_WALKING_STANCE_FRACTION: f64 = 0.8;
 /// Not walking: stance under this fraction of the time after the run-in (walking has a double
-/// support, so a foot is down over half the stride: 52-63 % on the shipped trials; a hip held
-/// too high leaves the foot hardly touching the belt, 24 % with the pelvic tilt 10 deg under
+/// support, so a foot is down over half the stride: 53-61 % on the shipped trials; a hip held
+/// too high leaves the foot hardly touching the belt, 23 % with the pelvic tilt 10 deg under
 /// the data's).
 pub const NOT_WALKING_MIN_STANCE_FRACTION: f64 = 0.4;
 /// Not walking: a stride whose longest time without any ground contact (vertical reaction

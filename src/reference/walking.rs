@@ -66,6 +66,8 @@ pub struct WalkingSample {
     pub pelvis_height_m: f64,
     /// Rate of `pelvis_height_m` (m/s).
     pub pelvis_rate_m_s: f64,
+    /// Acceleration of `pelvis_height_m` (m/s^2).
+    pub pelvis_accel_m_s2: f64,
     /// Stance weight of this leg (0 swing .. 1 stance).
     pub stance_weight: f64,
     /// The pelvis's fore-aft target (m; 0 unless the belt and the leg's sweep differ, set by
@@ -315,7 +317,7 @@ impl WalkingData {
         let g_this = self.grf.at(pct).max(0.0) * m;
         let g_other = self.grf.at(pct + 50.0).max(0.0) * m;
         let total = g_this + g_other;
-        let (pelvis, rate_per_pct, _) = self.pelvis.eval(pct);
+        let (pelvis, rate_per_pct, accel_per_pct2) = self.pelvis.eval(pct);
         WalkingSample {
             hip: self.thigh_at(t_s),
             knee: self.gait.knee_at(t_s),
@@ -328,6 +330,7 @@ impl WalkingData {
             other_share: if total > 0.0 { g_other / total } else { 0.5 },
             pelvis_height_m: pelvis,
             pelvis_rate_m_s: rate_per_pct * 100.0 / self.gait.stride_s,
+            pelvis_accel_m_s2: accel_per_pct2 * (100.0 / self.gait.stride_s).powi(2),
             stance_weight: self.stance_weight_at_pct(pct),
             pelvis_x_m: 0.0,
             pelvis_x_rate_m_s: 0.0,
