@@ -159,6 +159,15 @@ pub const CONTACT_COLUMNS: [&str; 9] = [
 ];
 
 impl Layout {
+    /// Values per row ([`Row::values_into`] appends this many).
+    pub fn width(&self) -> usize {
+        BASE_COLUMNS.len()
+            + usize::from(self.knee_reference)
+            + if self.leg { LEG_COLUMNS.len() } else { 0 }
+            + if self.contact { CONTACT_COLUMNS.len() } else { 0 }
+            + self.log.len().min(MAX_LOGGED)
+    }
+
     /// Column names in output order.
     pub fn names(&self) -> Vec<String> {
         let mut n: Vec<String> = BASE_COLUMNS.iter().map(|c| c.to_string()).collect();

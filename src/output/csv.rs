@@ -1,4 +1,5 @@
-//! `timeseries.csv`, streamed row by row through a buffer as the run goes.
+//! `timeseries.csv`, streamed as the run goes: the rows' values go in chunks to a writer
+//! thread that formats them, writes them through a buffer and syncs the file every 512 KiB.
 //!
 //! Floats are written by `ryu` (the shortest digits that read back to the same bits, in
 //! positional or exponent notation, whichever is shorter: `0.25`, `1e-7`, `2.5e16`) straight
@@ -27,13 +28,27 @@ pub fn push_f64(out: &mut Vec<u8>, x: f64) {
     }
 }
 
-/// Streams rows to a CSV file through a buffer.
+/// Rows handed to the writer thread at a time.
+const CHUNK_ROWS: usize = 2048;
+/// Chunks in flight between the run and the writer thread (bounds the memory).
+const CHUNKS_IN_FLIGHT: usize = 4;
+/// The writer thread syncs the file to disk after about this many bytes (so the final sync at
+/// [`CsvSink::finish`] has little left to write: on the reduced engine's 2.5 MB run, 1.7x the
+/// in-memory run's time against 2.0x syncing every 8 MiB and 2.5x writing in line).
+const SYNC_EVERY_BYTES: usize = 1 << 19;
+
+/// Streams rows to a CSV file: the run hands the rows' values in chunks to a writer thread,
+/// which formats them, writes them through a buffer and syncs the file as it goes, so the
+/// formatting and the disk overlap the simulation. The bytes are the same as formatting in
+/// line (the thread is only a pipeline).
 pub struct CsvSink {
     path: PathBuf,
-    w: std::io::BufWriter<std::fs::File>,
+    /// The file until `start` hands it to the writer thread.
+    file: Option<std::fs::File>,
     layout: Layout,
-    line: Vec<u8>,
-    values: Vec<f64>,
+    chunk: Vec<f64>,
+    tx: Option<std::sync::mpsc::SyncSender<Vec<f64>>>,
+    writer: Option<std::thread::JoinHandle<std::io::Result<()>>>,
 }
 
 impl CsvSink {
@@ -43,10 +58,11 @@ impl CsvSink {
             .map_err(|e| Error::Write { path: path.to_path_buf(), message: e.to_string() })?;
         Ok(Self {
             path: path.to_path_buf(),
-            w: std::io::BufWriter::with_capacity(1 << 16, f),
+            file: Some(f),
             layout: Layout::default(),
-            line: Vec::with_capacity(1024),
-            values: Vec::with_capacity(40),
+            chunk: Vec::new(),
+            tx: None,
+            writer: None,
         })
     }
 
@@ -54,32 +70,106 @@ impl CsvSink {
         Error::Write { path: self.path.clone(), message: e.to_string() }
     }
 
-    /// Flush and sync the file.
-    pub fn finish(mut self) -> Result<()> {
-        self.w.flush().map_err(|e| self.werr(e))?;
-        self.w.get_ref().sync_all().map_err(|e| self.werr(e))
+    /// Hand the current chunk to the writer thread; a thread that stopped on an error reports
+    /// it here.
+    fn send(&mut self) -> Result<()> {
+        if self.chunk.is_empty() {
+            return Ok(());
+        }
+        let width = self.layout.width().max(1);
+        let full = std::mem::replace(&mut self.chunk, Vec::with_capacity(CHUNK_ROWS * width));
+        match self.tx.as_ref().map(|tx| tx.send(full)) {
+            Some(Ok(())) => Ok(()),
+            _ => Err(self.join().err().unwrap_or_else(|| self.werr(std::io::Error::other("the CSV writer stopped")))),
+        }
     }
+
+    /// Close the channel and wait for the writer thread: its I/O error, if it had one.
+    fn join(&mut self) -> Result<()> {
+        self.tx = None;
+        match self.writer.take().map(|h| h.join()) {
+            None | Some(Ok(Ok(()))) => Ok(()),
+            Some(Ok(Err(e))) => Err(self.werr(e)),
+            Some(Err(_)) => Err(self.werr(std::io::Error::other("the CSV writer thread panicked"))),
+        }
+    }
+
+    /// Write what is left, flush and sync the file.
+    pub fn finish(mut self) -> Result<()> {
+        self.send()?;
+        self.join()?;
+        match self.file.take() {
+            // `start` was never called: nothing but an empty file.
+            Some(f) => f.sync_all().map_err(|e| self.werr(e)),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for CsvSink {
+    /// A sink dropped without `finish` (a run that failed) still waits for its thread.
+    fn drop(&mut self) {
+        let _ = self.join();
+    }
+}
+
+/// The writer thread: format each chunk of `width`-value rows, write, sync every
+/// [`SYNC_EVERY_BYTES`], and flush and sync at the end.
+fn write_rows(
+    mut w: std::io::BufWriter<std::fs::File>,
+    rx: std::sync::mpsc::Receiver<Vec<f64>>,
+    width: usize,
+) -> std::io::Result<()> {
+    let mut line = Vec::with_capacity(1 << 16);
+    let mut since_sync = 0usize;
+    for chunk in rx {
+        for row in chunk.chunks(width) {
+            for (i, v) in row.iter().enumerate() {
+                if i > 0 {
+                    line.push(b',');
+                }
+                push_f64(&mut line, *v);
+            }
+            line.push(b'\n');
+        }
+        w.write_all(&line)?;
+        since_sync += line.len();
+        line.clear();
+        if since_sync >= SYNC_EVERY_BYTES {
+            w.flush()?;
+            w.get_ref().sync_data()?;
+            since_sync = 0;
+        }
+    }
+    w.flush()?;
+    w.get_ref().sync_all()
 }
 
 impl RecordSink for CsvSink {
     fn start(&mut self, layout: &Layout) -> Result<()> {
         self.layout = layout.clone();
+        let Some(file) = self.file.take() else { return Ok(()) };
+        let mut w = std::io::BufWriter::with_capacity(1 << 16, file);
         let header = layout.names().join(",") + "\n";
-        self.w.write_all(header.as_bytes()).map_err(|e| self.werr(e))
+        w.write_all(header.as_bytes()).map_err(|e| self.werr(e))?;
+        let width = layout.width().max(1);
+        let (tx, rx) = std::sync::mpsc::sync_channel(CHUNKS_IN_FLIGHT);
+        let writer = std::thread::Builder::new()
+            .name("exoleg-csv".into())
+            .spawn(move || write_rows(w, rx, width))
+            .map_err(|e| self.werr(e))?;
+        (self.tx, self.writer, self.chunk) = (Some(tx), Some(writer), Vec::with_capacity(CHUNK_ROWS * width));
+        Ok(())
     }
 
     fn row(&mut self, row: &Row) -> Result<()> {
-        self.values.clear();
-        row.values_into(&self.layout, &mut self.values);
-        self.line.clear();
-        for (i, v) in self.values.iter().enumerate() {
-            if i > 0 {
-                self.line.push(b',');
-            }
-            push_f64(&mut self.line, *v);
+        let before = self.chunk.len();
+        row.values_into(&self.layout, &mut self.chunk);
+        debug_assert_eq!(self.chunk.len() - before, self.layout.width());
+        if self.chunk.len() >= CHUNK_ROWS * self.layout.width().max(1) {
+            self.send()?;
         }
-        self.line.push(b'\n');
-        self.w.write_all(&self.line).map_err(|e| self.werr(e))
+        Ok(())
     }
 }
 
