@@ -26,7 +26,8 @@
 
 use crate::reference::{RefSample, WalkingData};
 
-/// Thresholds of the foot switch, in N per kg of the subject's mass.
+/// Above this vertical ground reaction (N per kg of the subject's mass) a foot in swing counts
+/// as down.
 pub const CONTACT_ON_N_PER_KG: f64 = 0.5;
 /// Below this (N/kg) a foot in stance counts as lifted.
 pub const CONTACT_OFF_N_PER_KG: f64 = 0.1;
@@ -58,10 +59,9 @@ pub struct EventParams {
 impl EventParams {
     /// The defaults for a subject of `subject_mass_kg` and a stride of `stride_s`.
     pub fn for_subject(subject_mass_kg: f64, stride_s: f64) -> Self {
-        let weight = subject_mass_kg;
         Self {
-            on_n: CONTACT_ON_N_PER_KG * weight,
-            off_n: CONTACT_OFF_N_PER_KG * weight,
+            on_n: CONTACT_ON_N_PER_KG * subject_mass_kg,
+            off_n: CONTACT_OFF_N_PER_KG * subject_mass_kg,
             min_stance_s: MIN_STANCE_PCT / 100.0 * stride_s,
             min_swing_s: MIN_SWING_PCT / 100.0 * stride_s,
             blend_s: BLEND_PCT / 100.0 * stride_s,

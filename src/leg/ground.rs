@@ -341,3 +341,27 @@ pub(super) fn read_contacts(world: &PhysicsWorld, ground: ColliderHandle, dt_s: 
     }
     r
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::leg::planar::P2;
+
+    /// The static sink is the Hertz law inverted: one 2 cm sphere at E = 1e7 carrying 730 N
+    /// sinks (730 / (0.4714 E sqrt R))^(2/3) = 10.6 mm; two level spheres share the load; a
+    /// sphere 20 mm higher takes none of a load that sinks the lower one 10.6 mm; no load, no
+    /// sink.
+    #[test]
+    fn static_sink_inverts_the_hertz_law() {
+        let (e, r) = (1e7, 0.02);
+        let analytic = |load: f64| (load / (HERTZ * e * f64::sqrt(r))).powf(2.0 / 3.0);
+        let one = static_sink_m(e, &[(P2::new(0.0, -0.5), r)], 730.0);
+        assert!((one - analytic(730.0)).abs() < 1e-9 && (one - 0.0106).abs() < 2e-4, "{one}");
+        let two = static_sink_m(e, &[(P2::new(0.0, -0.5), r), (P2::new(0.17, -0.5), r)], 730.0);
+        assert!((two - analytic(365.0)).abs() < 1e-9, "{two}");
+        let high = static_sink_m(e, &[(P2::new(0.0, -0.5), r), (P2::new(0.17, -0.48), r)], 730.0);
+        assert!((high - one).abs() < 1e-9, "{high}");
+        assert_eq!(static_sink_m(e, &[(P2::new(0.0, -0.5), r)], 0.0), 0.0);
+        assert_eq!(static_sink_m(e, &[], 730.0), 0.0);
+    }
+}

@@ -6,7 +6,8 @@
 //! - Moments and ground reaction (N m/kg, N/kg) as tabulated, times the subject's mass.
 //! - The other leg is this leg half a cycle later. Its share of the body's support at a
 //!   phase is `grf_other / (grf_this + grf_other)`: 1 in this leg's swing, 0 in its single
-//!   support.
+//!   support (the data's; a run on the ground times it from the leg's own contact,
+//!   `human::events`).
 //! - The pelvis height the data imply: the hip sits as high above the ground as the foot on
 //!   the ground reaches (from the angles and the URDF's sole shapes, less the sole's static
 //!   sink under the data's load), this leg's once it carries a fifth of the body weight;
@@ -14,7 +15,9 @@
 //! - The belt speed the stance implies: how fast the sole point on the ground (the heel, then
 //!   the ball) moves backwards relative to the hip between heel strike and toe-off.
 //! - A stance weight in [0, 1]: 1 in this leg's stance, 0 in swing, with raised-cosine
-//!   transitions [`STANCE_BLEND_PCT`] wide centred on heel strike and toe-off.
+//!   transitions [`STANCE_BLEND_PCT`] wide centred on heel strike and toe-off (the data's; a
+//!   run on the ground uses the detected one, `human::events`).
+//! - The pelvis's fore-aft path when the belt and the leg's stance sweep differ.
 
 use super::{CycleTable, FourierSeries, GaitReference, RefSample};
 use crate::leg::{sole_contacts_at, sole_points_at, static_sink_m, LegSpec};
@@ -196,9 +199,10 @@ impl WalkingData {
     /// this leg is a body and the other is not, and the data's angles on a leg of other
     /// proportions than the subject's do not make the two reaches agree (holding the hip at
     /// the lower one pressed subject 02's landing leg 4 cm into the belt; at the load-weighted
-    /// mean, subject 01's overground cycle on the 1.75 m leg landed 10 % of the stride late). A foot in swing keeps [`SWING_CLEARANCE_M`] (a half sine over the swing,
-    /// 0 at toe-off and heel strike) between itself and the ground: where the leg's geometry
-    /// at the data's angles would put the swing foot lower, the hip is raised.
+    /// mean, subject 01's overground cycle on the 1.75 m leg landed 10 % of the stride late).
+    /// A foot in swing keeps [`SWING_CLEARANCE_M`] (a half sine over the swing, 0 at toe-off
+    /// and heel strike) between itself and the ground: where the leg's geometry at the data's
+    /// angles would put the swing foot lower, the hip is raised.
     fn pelvis_height_sample(&self, model: &LegSpec, sole_modulus_pa: Option<f64>, pct: f64) -> Result<f64, String> {
         let (hs, to) = self.stance_pct;
         let swing_len = (hs - to).rem_euclid(100.0);
