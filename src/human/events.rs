@@ -138,7 +138,7 @@ impl GaitEvents {
             return 1.0;
         }
         let (hs, to) = data.stance_pct;
-        let share_at = |pct: f64| data.at(pct / 100.0 * data.gait.stride_s).other_share;
+        let share_at = |pct: f64| data.other_share_at(pct / 100.0 * data.gait.stride_s);
         // The other foot leaves the ground (the data's loading ends) at its toe-off, half a
         // cycle after this leg's; it lands at its heel strike, half a cycle after this leg's.
         let loading_len = (to - 50.0 - hs).rem_euclid(100.0);

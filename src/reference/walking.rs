@@ -318,9 +318,7 @@ impl WalkingData {
     pub fn at(&self, t_s: f64) -> WalkingSample {
         let pct = self.pct_at(t_s);
         let m = self.subject_mass_kg;
-        let g_this = self.grf.at(pct).max(0.0) * m;
-        let g_other = self.grf.at(pct + 50.0).max(0.0) * m;
-        let total = g_this + g_other;
+        let (g_this, g_other) = self.grf_pair_n(pct);
         let (pelvis, rate_per_pct, accel_per_pct2) = self.pelvis.eval(pct);
         WalkingSample {
             hip: self.thigh_at(t_s),
@@ -331,7 +329,7 @@ impl WalkingData {
             ankle_moment_nm: self.ankle_moment.at(pct) * m,
             grf_this_n: g_this,
             grf_other_n: g_other,
-            other_share: if total > 0.0 { g_other / total } else { 0.5 },
+            other_share: Self::share_of(g_this, g_other),
             pelvis_height_m: pelvis,
             pelvis_rate_m_s: rate_per_pct * 100.0 / self.gait.stride_s,
             pelvis_accel_m_s2: accel_per_pct2 * (100.0 / self.gait.stride_s).powi(2),
@@ -339,6 +337,28 @@ impl WalkingData {
             pelvis_x_m: 0.0,
             pelvis_x_rate_m_s: 0.0,
         }
+    }
+
+    /// The data's vertical ground reaction on this foot and on the other at `pct` (N).
+    fn grf_pair_n(&self, pct: f64) -> (f64, f64) {
+        let m = self.subject_mass_kg;
+        (self.grf.at(pct).max(0.0) * m, self.grf.at(pct + 50.0).max(0.0) * m)
+    }
+
+    fn share_of(g_this: f64, g_other: f64) -> f64 {
+        let total = g_this + g_other;
+        if total > 0.0 {
+            g_other / total
+        } else {
+            0.5
+        }
+    }
+
+    /// The other leg's share of the support in the data at `t_s` ([`WalkingSample::other_share`]
+    /// without the rest of the sample).
+    pub fn other_share_at(&self, t_s: f64) -> f64 {
+        let (g_this, g_other) = self.grf_pair_n(self.pct_at(t_s));
+        Self::share_of(g_this, g_other)
     }
 
     /// The pelvis's fore-aft target (m, +x forward, zero mean over the cycle) and its rate

@@ -290,10 +290,7 @@ impl Ctx<'_> {
         let fraction = f.reference.assist_fraction;
         let stance = match walking {
             Some(w) if fraction != 0.0 => {
-                let a = KneeForceReference::assist_fit(&gait, &model, &w, fraction).map_err(|e| match e {
-                    Error::Input { message, .. } => Error::input(self.src(), "reference.assist_fraction", message),
-                    other => other,
-                })?;
+                let a = KneeForceReference::assist_fit(&gait, &model, &w, fraction)?;
                 Some((w, Some(Arc::new(a))))
             }
             Some(w) => Some((w, None)),
