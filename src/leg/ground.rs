@@ -256,10 +256,7 @@ pub(super) fn apply_compliant(
     dt_s: f64,
 ) -> ContactReading {
     let mut r = ContactReading::default();
-    let (mut cop, mut fz_sum) = ([0.0f64; 2], 0.0);
-    let p = c.params;
-    let kt = p.friction_stiffness_n_per_m;
-    let ct = 2.0 * (kt * FRICTION_MASS_KG).sqrt();
+    let mut sum = ReadingSum::default();
     for s in c.spheres.iter_mut() {
         let h = link_body[s.link];
         let rb = &world.bodies[h];
@@ -271,31 +268,79 @@ pub(super) fn apply_compliant(
         }
         let point = DVec3::new(center.x, center.y, c.ground_z_m);
         let v = rb.velocity_at_point(point);
-        let hertz = HERTZ * p.modulus_pa * s.radius_m.sqrt() * x * x.sqrt();
-        let fz = (hertz * (1.0 + 1.5 * p.dissipation_s_per_m * -v.z)).max(0.0);
-        let anchor = s.anchor_x_m.get_or_insert(point.x);
-        let mut fx = -kt * (point.x - *anchor) - ct * (v.x + belt_speed_m_s);
-        let limit = c.friction * fz;
-        if fx.abs() > limit {
-            fx = fx.signum() * limit;
-            *anchor = point.x + fx / kt;
-        }
+        let (fx, fz) = sphere_force(&c.params, c.friction, s.radius_m, x, point.x, [v.x, v.z], belt_speed_m_s, &mut s.anchor_x_m);
         // The anchor is a point of the belt: it moves with the surface.
-        *anchor -= belt_speed_m_s * dt_s;
+        if let Some(anchor) = s.anchor_x_m.as_mut() {
+            *anchor -= belt_speed_m_s * dt_s;
+        }
         let f = DVec3::new(fx, 0.0, fz);
         world.bodies[h].add_force_at_point(f, point, true);
-        r.vertical_n += fz;
-        r.horizontal_n += fx;
-        r.penetration_m = r.penetration_m.max(x);
-        r.moment_origin_y_nm += point.cross(f).y;
-        cop[0] += point.x * fz;
-        cop[1] += point.z * fz;
-        fz_sum += fz;
+        sum.add(&mut r, [point.x, point.z], [fx, fz], x);
     }
-    if fz_sum > 0.0 {
-        r.cop_m = Some([cop[0] / fz_sum, cop[1] / fz_sum]);
-    }
+    sum.finish(&mut r);
     r
+}
+
+/// The compliant law at one contact sphere of radius `radius_m` (m) pressed `depth_m` (> 0, m)
+/// into the ground, its contact point on the ground surface at `point_x_m` (m) moving at `v`
+/// (m/s, x and z) over a belt running at `belt_speed_m_s` (m/s): the Hunt-Crossley normal
+/// force and the anchor-spring friction (module doc). `anchor_x_m` is the friction spring's
+/// anchor on the belt (m): set at the contact point when None, moved to where the spring
+/// carries `friction * F_n` when the point slips. Returns the force on the foot (N, x and z).
+/// Both engines use it.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn sphere_force(
+    law: &CompliantContact,
+    friction: f64,
+    radius_m: f64,
+    depth_m: f64,
+    point_x_m: f64,
+    v: [f64; 2],
+    belt_speed_m_s: f64,
+    anchor_x_m: &mut Option<f64>,
+) -> (f64, f64) {
+    let kt = law.friction_stiffness_n_per_m;
+    let ct = 2.0 * (kt * FRICTION_MASS_KG).sqrt();
+    let x = depth_m;
+    let hertz = HERTZ * law.modulus_pa * radius_m.sqrt() * x * x.sqrt();
+    let fz = (hertz * (1.0 + 1.5 * law.dissipation_s_per_m * -v[1])).max(0.0);
+    let anchor = anchor_x_m.get_or_insert(point_x_m);
+    let mut fx = -kt * (point_x_m - *anchor) - ct * (v[0] + belt_speed_m_s);
+    let limit = friction * fz;
+    if fx.abs() > limit {
+        fx = fx.signum() * limit;
+        *anchor = point_x_m + fx / kt;
+    }
+    (fx, fz)
+}
+
+/// Running sums of a [`ContactReading`] over contact points.
+#[derive(Default)]
+pub(crate) struct ReadingSum {
+    cop: [f64; 2],
+    fz_sum: f64,
+}
+
+impl ReadingSum {
+    /// Add the force `f` (N, x and z) at the ground point `point` (m, x and z) with the depth
+    /// `depth_m` (m) to `r`.
+    pub(crate) fn add(&mut self, r: &mut ContactReading, point: [f64; 2], f: [f64; 2], depth_m: f64) {
+        r.vertical_n += f[1];
+        r.horizontal_n += f[0];
+        r.penetration_m = r.penetration_m.max(depth_m);
+        // (p x f).y for p = (px, 0, pz), f = (fx, 0, fz).
+        r.moment_origin_y_nm += point[1] * f[0] - point[0] * f[1];
+        self.cop[0] += point[0] * f[1];
+        self.cop[1] += point[1] * f[1];
+        self.fz_sum += f[1];
+    }
+
+    /// The centre of pressure of what was added.
+    pub(crate) fn finish(&self, r: &mut ContactReading) {
+        if self.fz_sum > 0.0 {
+            r.cop_m = Some([self.cop[0] / self.fz_sum, self.cop[1] / self.fz_sum]);
+        }
+    }
 }
 
 /// Read the contacts of the ground after a step of `dt_s`.

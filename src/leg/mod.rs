@@ -26,6 +26,7 @@ pub mod reduced;
 pub mod stops;
 pub mod subject;
 pub mod urdf;
+pub mod walker;
 
 pub use error::LegError;
 pub use geometry::{
@@ -50,4 +51,5 @@ pub const BUILTIN_URDFS: [(&str, &str); 2] = [
     ("builtin:exo_leg_small", include_str!("../../urdf/exo_leg_small.urdf")),
 ];
 pub use reduced::{HipMotion, ReducedModel};
+pub use walker::WalkerModel;
 pub use stops::{EndStops, StopReport, StopSource};

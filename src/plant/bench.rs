@@ -58,7 +58,7 @@ impl Plant for Bench {
         }
     }
 
-    fn advance(&mut self, t_s: f64, _inputs: &PlantInputs) -> Result<f64> {
+    fn advance(&mut self, t_s: f64, _inputs: &PlantInputs<'_>) -> Result<f64> {
         Ok(self.piston_at(t_s + self.dt_s).position_m - self.piston_at(t_s).position_m)
     }
 }

@@ -232,8 +232,10 @@ pub struct LegSetup {
     pub ground: Option<crate::leg::GroundConfig>,
     /// The body on the pelvis carriage (`hip.mode = "carriage"`).
     pub body: Option<Arc<crate::human::BodySetup>>,
-    /// The reduced-coordinate model when `leg.engine = "reduced"`.
+    /// The reduced-coordinate model when `leg.engine = "reduced"` (the knee-only engine).
     pub reduced: Option<Arc<crate::leg::ReducedModel>>,
+    /// The reduced engine's walking leg when `leg.engine = "reduced"` on the carriage.
+    pub walker: Option<Arc<crate::leg::WalkerModel>>,
     /// The end stops: the knee's limits, the stroke ends, the moving ankle's limits.
     pub stops: crate::leg::EndStops,
 }
@@ -445,7 +447,7 @@ impl Plant for LegPlant {
         self.leg.knee_velocity_rad_s()
     }
 
-    fn advance(&mut self, t_s: f64, inputs: &PlantInputs) -> Result<f64> {
+    fn advance(&mut self, t_s: f64, inputs: &PlantInputs<'_>) -> Result<f64> {
         let dt_s = self.dt_s;
         let q = self.leg.knee_angle_rad();
         // Interaction: positive w1 resists a lengthening surplus of the actuator, so it pushes

@@ -6,9 +6,11 @@
 mod bench;
 mod leg;
 mod reduced;
+mod walker;
 pub use bench::*;
 pub use leg::*;
 pub use reduced::ReducedLegPlant;
+pub use walker::WalkerPlant;
 
 use crate::error::Result;
 use crate::record::{ContactRow, LegRow};
@@ -155,7 +157,7 @@ impl PistonTrack {
 
 /// What the loop applies to the plant over one step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct PlantInputs {
+pub struct PlantInputs<'a> {
     /// Net force along the cylinder axis (N), positive lengthening: load force minus friction
     /// (or the prescribed force in `actuator.mode = "force"`).
     pub cylinder_force_n: f64,
@@ -164,28 +166,36 @@ pub struct PlantInputs {
     pub cuff_force_n: f64,
     /// The body's forces on the carriage over the step (from [`Plant::body_state`]).
     pub body: Option<crate::human::BodyForces>,
-    /// With [`CoupledMechanics`]: the knee angle (rad) and rate (rad/s) the loop integrated to
-    /// the end of the step together with the hydraulics; the plant takes them as they are.
-    pub knee_end: Option<(f64, f64)>,
+    /// With [`CoupledMechanics`]: the mechanical state the loop integrated to the end of the
+    /// step together with the hydraulics (in the order of [`CoupledMechanics::state_names`]);
+    /// the plant takes it as it is.
+    pub mech_end: Option<&'a [f64]>,
+}
+
+/// What a [`CoupledMechanics`] stage is given besides the time and the mechanical state.
+pub struct StageInputs<'a> {
+    /// The net cylinder force (N, positive lengthening) at a piston velocity (m/s).
+    pub net_force_n: &'a dyn Fn(f64) -> f64,
+    /// As [`PlantInputs::cuff_force_n`] (N), held over the step.
+    pub cuff_force_n: f64,
+    /// As [`PlantInputs::body`], held over the step.
+    pub body: Option<crate::human::BodyForces>,
 }
 
 /// Mechanics the loop can evaluate at any instant of a step (the reduced engine). The loop
-/// then integrates the knee in the same ODE as the hydraulics and the controller (monolithic
-/// coupling: the force ODE sees the exact piston motion at every stage, and the knee sees the
-/// force as it changes within the step), instead of predicting the piston and handing the
-/// plant the step's average force.
+/// then integrates the mechanical state in the same ODE as the hydraulics and the controller
+/// (monolithic coupling: the force ODE sees the exact piston motion at every stage, and the
+/// mechanics see the force as it changes within the step), instead of predicting the piston
+/// and handing the plant the step's average force.
 pub trait CoupledMechanics {
-    /// The piston and the knee at time `t_s` and knee state `q_rad`, `qd_rad_s` (rad, rad/s):
-    /// `net_force_n` gives the net cylinder force (N, positive lengthening) at a piston velocity
-    /// (m/s); `cuff_force_n` is as [`PlantInputs::cuff_force_n`] (N).
-    fn stage(
-        &self,
-        t_s: f64,
-        q_rad: f64,
-        qd_rad_s: f64,
-        net_force_n: &dyn Fn(f64) -> f64,
-        cuff_force_n: f64,
-    ) -> CoupledStage;
+    /// Names of the mechanical state's entries (SI units in the names); its length is the
+    /// state's.
+    fn state_names(&self) -> &'static [&'static str];
+    /// The mechanical state now, into `x` (as long as [`Self::state_names`]).
+    fn state(&self, x: &mut [f64]);
+    /// The piston and the knee at time `t_s` and mechanical state `x`, with the state's time
+    /// derivative written to `dx`.
+    fn stage(&self, t_s: f64, x: &[f64], inputs: &StageInputs, dx: &mut [f64]) -> CoupledStage;
 }
 
 /// One evaluation of [`CoupledMechanics`].
@@ -194,8 +204,8 @@ pub struct CoupledStage {
     /// The piston: position from its length at the start of the run (m), velocity (m/s),
     /// acceleration (m/s^2).
     pub piston: PistonMotion,
-    /// Knee acceleration (rad/s^2).
-    pub knee_accel_rad_s2: f64,
+    /// Knee angle (rad) and rate (rad/s) at the stage.
+    pub knee: (f64, f64),
 }
 
 /// A plant as the co-simulation loop sees it.
@@ -223,7 +233,7 @@ pub trait Plant: Send {
     /// Advance the mechanics over one step (its length was fixed when the plant was built) from
     /// `t_s` under a force constant over the step. Returns the change of cylinder length over
     /// the step (m), measured geometrically.
-    fn advance(&mut self, t_s: f64, inputs: &PlantInputs) -> Result<f64>;
+    fn advance(&mut self, t_s: f64, inputs: &PlantInputs<'_>) -> Result<f64>;
     /// What the end stops did so far (None for plants without a leg).
     fn stop_report(&self) -> Option<crate::leg::StopReport> {
         None

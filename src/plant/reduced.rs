@@ -5,7 +5,9 @@
 //! stage); with a prescribed force or none, the plant integrates the knee itself (RK4 under the
 //! step's force).
 
-use super::{CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs};
+use super::{
+    CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs, StageInputs,
+};
 use crate::error::{Error, Result};
 use crate::integrator::Integrator;
 use crate::leg::{moment_arm_slope_at, ReducedModel};
@@ -99,16 +101,32 @@ impl ReducedLegPlant {
     }
 }
 
+/// Names of the knee-only engine's mechanical state.
+const KNEE_STATE: [&str; 2] = ["knee_angle_rad", "knee_rate_rad_s"];
+
 impl CoupledMechanics for ReducedLegPlant {
-    fn stage(&self, t_s: f64, q: f64, qd: f64, net_force_n: &dyn Fn(f64) -> f64, cuff_force_n: f64) -> CoupledStage {
+    fn state_names(&self) -> &'static [&'static str] {
+        &KNEE_STATE
+    }
+
+    fn state(&self, x: &mut [f64]) {
+        x[0] = self.q;
+        x[1] = self.qd;
+    }
+
+    fn stage(&self, t_s: f64, x: &[f64], inputs: &StageInputs, dx: &mut [f64]) -> CoupledStage {
+        let (q, qd) = (x[0], x[1]);
         let (l, arm, arm_slope) = self.model.cylinder_kinematics(q);
         let v = arm * qd;
-        let qdd = self.knee_accel(t_s, q, qd, net_force_n(v), arm, self.cuff_torque(cuff_force_n, arm));
+        let cuff = self.cuff_torque(inputs.cuff_force_n, arm);
+        let qdd = self.knee_accel(t_s, q, qd, (inputs.net_force_n)(v), arm, cuff);
         // xc_ddot = L'(q) q'' + L''(q) q'^2.
         let accel_m_s2 = arm * qdd + arm_slope * qd * qd;
+        dx[0] = qd;
+        dx[1] = qdd;
         CoupledStage {
             piston: PistonMotion { position_m: self.piston.position_at(l), velocity_m_s: v, accel_m_s2 },
-            knee_accel_rad_s2: qdd,
+            knee: (q, qd),
         }
     }
 }
@@ -139,12 +157,12 @@ impl Plant for ReducedLegPlant {
         self.qd
     }
 
-    fn advance(&mut self, t_s: f64, inputs: &PlantInputs) -> Result<f64> {
+    fn advance(&mut self, t_s: f64, inputs: &PlantInputs<'_>) -> Result<f64> {
         let dt_s = self.dt_s;
         let force = inputs.cylinder_force_n;
         let q0 = self.q;
-        (self.q, self.qd) = match inputs.knee_end {
-            Some(end) => end,
+        (self.q, self.qd) = match inputs.mech_end {
+            Some(end) => (end[0], end[1]),
             None => self.rk4(t_s, dt_s, force, inputs.cuff_force_n),
         };
         let m = &self.model;

@@ -448,6 +448,7 @@ fn leg_setup(
         ground,
         body,
         reduced: None,
+        walker: None,
         stops: crate::leg::EndStops::of(&l.model),
     })
 }
@@ -639,10 +640,22 @@ impl Scenario {
             Some(l) => {
                 let mut setup = leg_setup(self, l, &reference, mode, walking)?;
                 if f.leg.engine == crate::plant::LegEngine::Reduced {
-                    let r = res
-                        .reduced(&l.model)
-                        .map_err(|e| Error::input(&self.source_name, "leg.engine", e.to_string()))?;
-                    setup.reduced = Some(r);
+                    let bad = |e: crate::leg::LegError| Error::input(&self.source_name, "leg.engine", e.to_string());
+                    match &setup.body {
+                        Some(b) => {
+                            let (hip, g) = (&b.hip, setup.ground.as_ref());
+                            let w = crate::leg::WalkerModel::new(
+                                &l.model,
+                                b.pelvis_mass_kg,
+                                g,
+                                hip.locked,
+                                hip.tether_locked,
+                            )
+                            .map_err(bad)?;
+                            setup.walker = Some(Arc::new(w));
+                        }
+                        None => setup.reduced = Some(res.reduced(&l.model).map_err(bad)?),
+                    }
                 }
                 PlantSetup::Leg(Box::new(setup))
             }

@@ -47,17 +47,17 @@ mod state;
 
 pub use crate::integrator::Integrator;
 pub use model::Model;
-pub use state::{KneeState, PistonState, State, PLANT_LEN};
+pub use state::{PistonState, State, PLANT_LEN};
 
 use crate::control::{ControlOutput, Controller, DiscreteController, Measurement, SampleInput, MAX_LOGGED};
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
 use crate::hydraulics::ActuatorMode;
 use crate::plant::PlantSetup;
-use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs, ReducedLegPlant};
+use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs, ReducedLegPlant, WalkerPlant};
 use crate::record::{Layout, RecordSink, Row};
 use crate::sensors::{SampledSensors, ZeroOrderHold};
-use stage::Dynamics;
+use stage::{Dynamics, Extra, ExtraMut};
 use std::sync::Arc;
 
 /// Spool travel (m) past which a run is declared unstable.
@@ -80,6 +80,8 @@ pub(crate) struct Held {
     pub output: Option<ControlOutput>,
     /// The leg's stance and swing from its contact (loaded walking on the ground).
     pub events: Option<crate::human::GaitEvents>,
+    /// The body's forces on the carriage over the step (from the body's state at its start).
+    pub body: Option<crate::human::BodyForces>,
 }
 
 /// The sampled controller's side of the loop: sensors, hold, and the controller (or none when
@@ -124,6 +126,10 @@ pub struct Simulation {
     state: State,
     /// The continuous controller's state (sized when it is built).
     controller_state: Vec<f64>,
+    /// The coupled mechanics' state (reduced engine with the hydraulic actuator; else empty)
+    /// and its names.
+    mech_state: Vec<f64>,
+    mech_names: &'static [&'static str],
     /// The integrator's packed vector and scratch, allocated once.
     packed: Vec<f64>,
     first: Vec<f64>,
@@ -144,9 +150,10 @@ pub struct Simulation {
 fn build_plant(sc: &Model) -> Result<Box<dyn Plant>> {
     Ok(match &sc.plant {
         PlantSetup::Bench(b) => Box::new(Bench::new(b.clone(), sc.dt_s)),
-        PlantSetup::Leg(l) => match &l.reduced {
-            Some(r) => Box::new(ReducedLegPlant::new(l, r.clone(), sc.reference.clone(), sc.dt_s)?),
-            None => Box::new(LegPlant::new(l, sc.reference.clone(), sc.dt_s, &sc.source_name)?),
+        PlantSetup::Leg(l) => match (&l.walker, &l.reduced) {
+            (Some(w), _) => Box::new(WalkerPlant::new(l, w.clone(), sc.dt_s)?),
+            (None, Some(r)) => Box::new(ReducedLegPlant::new(l, r.clone(), sc.reference.clone(), sc.dt_s)?),
+            (None, None) => Box::new(LegPlant::new(l, sc.reference.clone(), sc.dt_s, &sc.source_name)?),
         },
     })
 }
@@ -200,12 +207,18 @@ impl Simulation {
             ControlBlock::Continuous(c) => c.state_names(),
             ControlBlock::Sampled(_) => Vec::new(),
         };
-        let n = PLANT_LEN + controller_names.len();
+        let mech_names = match (sc.actuator.mode, plant.coupled()) {
+            (ActuatorMode::Hydraulic, Some(c)) => c.state_names(),
+            _ => &[],
+        };
+        let n = PLANT_LEN + mech_names.len() + controller_names.len();
         let state = State { hyd: sc.cylinder.initial_state(), ..Default::default() };
         let output = matches!(control, ControlBlock::Sampled(_)).then(ControlOutput::default);
         let held = Held { output, events: Self::gait_events(&sc), ..Default::default() };
         Ok(Self {
             controller_state: vec![0.0; controller_names.len()],
+            mech_state: vec![0.0; mech_names.len()],
+            mech_names,
             packed: vec![0.0; n],
             first: vec![0.0; n],
             work: vec![0.0; crate::integrator::SCRATCH_VECTORS * n],
@@ -314,9 +327,8 @@ impl Simulation {
         self.held.predictor = if self.hydraulic() { self.plant.piston_predictor() } else { None };
         if let Some(p) = &self.held.predictor {
             self.state.piston = PistonState { position_m: p.position_m, velocity_m_s: p.velocity_m_s };
-            if self.plant.coupled().is_some() {
-                self.state.knee =
-                    KneeState { angle_rad: self.plant.knee_rad(), rate_rad_s: self.plant.knee_rate_rad_s() };
+            if let Some(c) = self.plant.coupled() {
+                c.state(&mut self.mech_state);
             }
         }
         if self.k == 0 {
@@ -326,6 +338,13 @@ impl Simulation {
         if let (Some(e), Some(c)) = (self.held.events.as_mut(), self.plant.contact_row()) {
             e.update(t, c.ground_reaction_vertical_n);
         }
+        self.held.body = self.body_forces(t);
+    }
+
+    /// A derivative slot for the mechanics' state in `buf` (evaluations whose derivatives are
+    /// not kept).
+    fn mech_scratch<'a>(&self, buf: &'a mut [f64; 16]) -> ExtraMut<'a> {
+        ExtraMut { mech: &mut buf[..self.mech_state.len()], ctrl: &mut [] }
     }
 
     /// The contact detector of a walking run on the ground (see `human::events`).
@@ -344,7 +363,7 @@ impl Simulation {
         if on_traj && self.hydraulic() {
             let d = self.dynamics();
             let r = d.reference_at(0.0, &self.held);
-            let v = d.piston(0.0, &self.state, self.plant.as_ref(), &self.held).velocity_m_s;
+            let v = d.piston(0.0, &self.state, &self.mech_state, self.plant.as_ref(), &self.held).velocity_m_s;
             self.sc.cylinder.start_on_trajectory(&mut self.state.hyd, r.value, r.rate, v);
         }
     }
@@ -360,8 +379,10 @@ impl Simulation {
         let t = self.t_s();
         let period = self.sc.sample_period_s;
         let d = Dynamics { sc: &self.sc, controller: None };
-        let s0 = d.evaluate(t, &self.state, &[], &mut [], self.plant.as_ref(), &self.held);
-        let truth = d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held);
+        let mut dmech = [0.0; 16];
+        let (x, dx) = (Extra { mech: &self.mech_state, ctrl: &[] }, self.mech_scratch(&mut dmech));
+        let s0 = d.evaluate(t, &self.state, x, dx, self.plant.as_ref(), &self.held);
+        let truth = d.truth(&self.state, &self.mech_state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held);
         let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
         let (y, counts) = l.sensors.sample(&truth);
         l.sampled = Some(self.k);
@@ -471,8 +492,11 @@ impl Simulation {
         if self.k == 0 {
             let init = Held { output: Some(ControlOutput::default()), ..self.held };
             let d = self.dynamics();
-            let s0 = d.evaluate(0.0, &self.state, &[], &mut [], self.plant.as_ref(), &init);
-            let y0: Measurement = d.truth(&self.state, s0.force_rate_n_per_s, self.plant.as_ref(), 0.0, &init);
+            let mut dmech = [0.0; 16];
+            let (x, dx) = (Extra { mech: &self.mech_state, ctrl: &[] }, self.mech_scratch(&mut dmech));
+            let s0 = d.evaluate(0.0, &self.state, x, dx, self.plant.as_ref(), &init);
+            let mech = &self.mech_state;
+            let y0: Measurement = d.truth(&self.state, mech, s0.force_rate_n_per_s, self.plant.as_ref(), 0.0, &init);
             let r0 = d.reference_at(0.0, &self.held);
             if let ControlBlock::Continuous(c) = &self.control {
                 c.init(&y0, &r0, &mut self.controller_state);
@@ -549,9 +573,8 @@ impl Simulation {
         let inputs = PlantInputs {
             cylinder_force_n,
             cuff_force_n: self.held.cuff_force_n,
-            body: self.body_forces(t),
-            knee_end: (self.held.predictor.is_some() && self.plant.coupled().is_some())
-                .then_some((self.state.knee.angle_rad, self.state.knee.rate_rad_s)),
+            body: self.held.body,
+            mech_end: (!self.mech_state.is_empty() && self.held.predictor.is_some()).then_some(&self.mech_state[..]),
         };
         let stroke = self.plant.advance(t, &inputs)?;
         let missed = self.hydraulic().then(|| {
@@ -570,8 +593,10 @@ impl Simulation {
     /// step. Returns the start's evaluation with its packed derivative in `self.first`.
     fn record_start(&mut self, t: f64, sink: &mut dyn RecordSink) -> Result<stage::Stage> {
         let mut first = std::mem::take(&mut self.first);
-        let (dp, dc) = first.split_at_mut(PLANT_LEN);
-        let s0 = self.dynamics().evaluate(t, &self.state, &self.controller_state, dc, self.plant.as_ref(), &self.held);
+        let (dp, dx) = first.split_at_mut(PLANT_LEN);
+        let x = Extra { mech: &self.mech_state, ctrl: &self.controller_state };
+        let dx = ExtraMut::split(dx, self.mech_state.len());
+        let s0 = self.dynamics().evaluate(t, &self.state, x, dx, self.plant.as_ref(), &self.held);
         s0.derivative.pack_into(dp);
         self.first = first;
         let w1 = self.interaction(t, s0.force_rate_n_per_s);
@@ -596,14 +621,17 @@ impl Simulation {
         let mut work = std::mem::take(&mut self.work);
         let mut k1 = std::mem::take(&mut self.scratch_k1);
         let reuse_first = self.reuse_first;
+        let nm = self.mech_state.len();
         self.state.pack_into(&mut x);
-        x[PLANT_LEN..].copy_from_slice(&self.controller_state);
+        x[PLANT_LEN..PLANT_LEN + nm].copy_from_slice(&self.mech_state);
+        x[PLANT_LEN + nm..].copy_from_slice(&self.controller_state);
         let d = self.dynamics();
         let (plant, held) = (self.plant.as_ref(), &self.held);
         let f = |tau: f64, xs: &[f64], dx: &mut [f64]| {
-            let (xp, xc) = xs.split_at(PLANT_LEN);
-            let (dp, dc) = dx.split_at_mut(PLANT_LEN);
-            d.evaluate(tau, &State::unpack(xp), xc, dc, plant, held).derivative.pack_into(dp);
+            let (xp, xe) = xs.split_at(PLANT_LEN);
+            let (dp, de) = dx.split_at_mut(PLANT_LEN);
+            let (xe, de) = (Extra::split(xe, nm), ExtraMut::split(de, nm));
+            d.evaluate(tau, &State::unpack(xp), xe, de, plant, held).derivative.pack_into(dp);
         };
         for i in 0..n {
             let ti = t + i as f64 * h;
@@ -615,7 +643,8 @@ impl Simulation {
             }
         }
         self.state = State::unpack(&x);
-        self.controller_state.copy_from_slice(&x[PLANT_LEN..]);
+        self.mech_state.copy_from_slice(&x[PLANT_LEN..PLANT_LEN + nm]);
+        self.controller_state.copy_from_slice(&x[PLANT_LEN + nm..]);
         (self.packed, self.work, self.scratch_k1) = (x, work, k1);
         Ok(())
     }
@@ -687,7 +716,9 @@ impl Simulation {
 
     /// Stop on a non-finite state or an implausible spool.
     fn check(&self, t: f64) -> Result<()> {
-        let bad = self.state.first_non_finite(&self.controller_state, &self.controller_names).or_else(|| {
+        let mech = self.mech_state.iter().zip(self.mech_names).find(|(v, _)| !v.is_finite());
+        let bad = mech.map(|(v, n)| (n.to_string(), *v));
+        let bad = bad.or_else(|| self.state.first_non_finite(&self.controller_state, &self.controller_names)).or_else(|| {
             match &self.control {
                 ControlBlock::Sampled(l) => l.ctrl.as_ref().and_then(|c| c.first_non_finite()),
                 ControlBlock::Continuous(_) => None,
@@ -713,7 +744,9 @@ impl Simulation {
         self.begin();
         let d = self.dynamics();
         let mut dc = vec![0.0; self.controller_state.len()];
-        let s = d.evaluate(t, &self.state, &self.controller_state, &mut dc, self.plant.as_ref(), &self.held);
+        let mut dm = vec![0.0; self.mech_state.len()];
+        let x = Extra { mech: &self.mech_state, ctrl: &self.controller_state };
+        let s = d.evaluate(t, &self.state, x, ExtraMut { mech: &mut dm, ctrl: &mut dc }, self.plant.as_ref(), &self.held);
         let w1 = self.interaction(t, s.force_rate_n_per_s);
         let mut row = d.row(t, &self.state, &s, w1, self.plant.as_ref(), &self.held);
         if let ControlBlock::Sampled(l) = &self.control {

@@ -6,10 +6,41 @@ use crate::control::{ControlOutput, Controller};
 use crate::disturbance::{CHANNEL_FORCE_ACCEL, CHANNEL_FORCE_RATE, CHANNEL_SPOOL};
 use crate::human::HumanMode;
 use crate::hydraulics::{ActuatorMode, ForceChannelInput, ForceRates, ForceSource, PistonKinematics};
-use crate::plant::{CoupledMechanics, PistonMotion, PistonPredictor, Plant};
+use crate::plant::{CoupledMechanics, CoupledStage, PistonMotion, PistonPredictor, Plant, StageInputs};
 use crate::record::Row;
 use crate::reference::RefSample;
 use crate::sensors::Measurement;
+
+/// The states beside the plant-side ones at a stage: the coupled mechanics' and the continuous
+/// controller's.
+#[derive(Clone, Copy)]
+pub(super) struct Extra<'a> {
+    pub mech: &'a [f64],
+    pub ctrl: &'a [f64],
+}
+
+/// Where their derivatives go.
+pub(super) struct ExtraMut<'a> {
+    pub mech: &'a mut [f64],
+    pub ctrl: &'a mut [f64],
+}
+
+impl<'a> Extra<'a> {
+    /// The two from the part of a packed vector after the plant-side entries, the mechanics'
+    /// `n_mech` first.
+    pub fn split(x: &'a [f64], n_mech: usize) -> Self {
+        let (mech, ctrl) = x.split_at(n_mech);
+        Self { mech, ctrl }
+    }
+}
+
+impl<'a> ExtraMut<'a> {
+    /// As [`Extra::split`].
+    pub fn split(x: &'a mut [f64], n_mech: usize) -> Self {
+        let (mech, ctrl) = x.split_at_mut(n_mech);
+        Self { mech, ctrl }
+    }
+}
 
 /// Everything one evaluation produces.
 pub(super) struct Stage {
@@ -54,22 +85,33 @@ impl Dynamics<'_> {
         }
     }
 
-    /// Piston motion at a stage: prescribed by the plant, from the coupled knee states, or from
-    /// the predictor states.
-    pub fn piston(&self, t: f64, s: &State, plant: &dyn Plant, held: &Held) -> PistonMotion {
+    /// Piston motion at a stage: prescribed by the plant, from the coupled mechanics' state
+    /// `mech`, or from the predictor states.
+    pub fn piston(&self, t: f64, s: &State, mech: &[f64], plant: &dyn Plant, held: &Held) -> PistonMotion {
         match (held.predictor.as_ref(), plant.coupled()) {
             (None, _) => plant.piston_at(t),
-            (Some(_), Some(c)) => self.coupled(t, s, c, held).0,
+            (Some(_), Some(c)) => {
+                let mut scratch = [0.0; 16];
+                self.coupled(t, s, mech, &mut scratch[..mech.len()], c, held).piston
+            }
             (Some(p), None) => Self::predicted(s, p, self.sc.friction.force_n(s.piston.velocity_m_s)),
         }
     }
 
-    /// With coupled mechanics: the piston motion at the knee state of `s` and the knee
-    /// acceleration (rad/s^2).
-    fn coupled(&self, t: f64, s: &State, c: &dyn CoupledMechanics, held: &Held) -> (PistonMotion, f64) {
+    /// With coupled mechanics: the piston and the knee at the mechanical state `mech`, whose
+    /// derivative goes to `dmech`.
+    fn coupled(
+        &self,
+        t: f64,
+        s: &State,
+        mech: &[f64],
+        dmech: &mut [f64],
+        c: &dyn CoupledMechanics,
+        held: &Held,
+    ) -> CoupledStage {
         let net_force = |v: f64| s.hyd.force_n - self.sc.friction.force_n(v);
-        let st = c.stage(t, s.knee.angle_rad, s.knee.rate_rad_s, &net_force, held.cuff_force_n);
-        (st.piston, st.knee_accel_rad_s2)
+        let inputs = StageInputs { net_force_n: &net_force, cuff_force_n: held.cuff_force_n, body: held.body };
+        c.stage(t, mech, &inputs, dmech)
     }
 
     /// The predictor's piston motion at state `s` with the friction `friction_n` (N) at its
@@ -119,10 +161,10 @@ impl Dynamics<'_> {
     /// piston velocity the oil column experiences (with a predictor: the effective velocity of
     /// the plant's integrator, including its substep lead; what a velocity sensor on the real
     /// cylinder would measure).
-    pub fn truth(&self, s: &State, x2: f64, plant: &dyn Plant, t: f64, held: &Held) -> Measurement {
+    pub fn truth(&self, s: &State, mech: &[f64], x2: f64, plant: &dyn Plant, t: f64, held: &Held) -> Measurement {
         let p = plant.piston_at(t);
         let v = match held.predictor.as_ref() {
-            Some(_) => self.piston(t, s, plant, held).velocity_m_s,
+            Some(_) => self.piston(t, s, mech, plant, held).velocity_m_s,
             None => p.velocity_m_s,
         };
         Measurement {
@@ -137,27 +179,21 @@ impl Dynamics<'_> {
         }
     }
 
-    /// Evaluate the continuous dynamics at (t, s) and the continuous controller's state `ctrl`
-    /// with what is held over the step; the controller's state derivative goes to `dctrl`.
-    pub fn evaluate(
-        &self,
-        t: f64,
-        s: &State,
-        ctrl: &[f64],
-        dctrl: &mut [f64],
-        plant: &dyn Plant,
-        held: &Held,
-    ) -> Stage {
+    /// Evaluate the continuous dynamics at (t, s), the coupled mechanics' state `x.mech` and
+    /// the continuous controller's state `x.ctrl` with what is held over the step; their
+    /// derivatives go to `dx`.
+    pub fn evaluate(&self, t: f64, s: &State, x: Extra, dx: ExtraMut, plant: &dyn Plant, held: &Held) -> Stage {
         let sc = self.sc;
         let pred = held.predictor.as_ref();
-        let coupled = pred.and(plant.coupled()).map(|c| self.coupled(t, s, c, held));
+        let coupled = pred.and(plant.coupled()).map(|c| self.coupled(t, s, x.mech, dx.mech, c, held));
+        let (ctrl, dctrl) = (x.ctrl, dx.ctrl);
         // Friction and its slope at the predictor's piston velocity (unused without one).
         let (friction_n, friction_slope) = match (pred, coupled) {
             (Some(_), None) => sc.friction.force_and_slope(s.piston.velocity_m_s),
             _ => (0.0, 0.0),
         };
         let mut piston = match (pred, coupled) {
-            (_, Some((m, _))) => m,
+            (_, Some(c)) => c.piston,
             (Some(p), None) => Self::predicted(s, p, friction_n),
             (None, None) => plant.piston_at(t),
         };
@@ -180,8 +216,8 @@ impl Dynamics<'_> {
             piston_velocity_m_s: piston.velocity_m_s,
             piston_accel_m_s2: piston.accel_m_s2,
             // Coupled mechanics: the knee at this stage; otherwise the plant's at the step start.
-            knee_rad: if coupled.is_some() { s.knee.angle_rad } else { plant.knee_rad() },
-            knee_rate_rad_s: if coupled.is_some() { s.knee.rate_rad_s } else { plant.knee_rate_rad_s() },
+            knee_rad: coupled.map_or_else(|| plant.knee_rad(), |c| c.knee.0),
+            knee_rate_rad_s: coupled.map_or_else(|| plant.knee_rate_rad_s(), |c| c.knee.1),
         };
         let mut derivative = State::default();
         let out = match (held.output, self.controller) {
@@ -192,11 +228,9 @@ impl Dynamics<'_> {
         inp.valve_command = out.valve_command;
         derivative.hyd = sc.cylinder.derivatives(&s.hyd, &inp, &rates);
         match (pred, coupled) {
-            (_, Some((m, qdd))) => {
-                derivative.piston.position_m = m.velocity_m_s;
-                derivative.piston.velocity_m_s = m.accel_m_s2;
-                derivative.knee.angle_rad = s.knee.rate_rad_s;
-                derivative.knee.rate_rad_s = qdd;
+            (_, Some(c)) => {
+                derivative.piston.position_m = c.piston.velocity_m_s;
+                derivative.piston.velocity_m_s = c.piston.accel_m_s2;
             }
             (Some(p), None) => {
                 derivative.piston.position_m = piston.velocity_m_s;

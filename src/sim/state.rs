@@ -1,6 +1,6 @@
 //! The typed state of the co-simulation loop and its packing for the integrators
 //! (MuJoCo keeps `qpos`/`act` as named slices of one array; so do we, in one place): the
-//! plant-side entries first, then the continuous controller's, sized when the controller is
+//! plant-side entries first, then the coupled mechanics' (reduced engine), then the continuous controller's, sized when the controller is
 //! built.
 
 use crate::hydraulics::HydraulicState;
@@ -14,16 +14,6 @@ pub struct PistonState {
     pub velocity_m_s: f64,
 }
 
-/// The knee inside a step when the loop integrates the mechanics itself (a plant with
-/// [`crate::plant::CoupledMechanics`]; unused otherwise).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct KneeState {
-    /// Knee angle (rad).
-    pub angle_rad: f64,
-    /// Knee rate (rad/s).
-    pub rate_rad_s: f64,
-}
-
 /// The plant-side states the loop integrates over a step (the continuous controller's state is
 /// a slice beside it).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -32,12 +22,10 @@ pub struct State {
     pub hyd: HydraulicState,
     /// Piston predictor.
     pub piston: PistonState,
-    /// Coupled knee.
-    pub knee: KneeState,
 }
 
-/// Number of plant-side entries in the packed vector; the controller's follow.
-pub const PLANT_LEN: usize = 8;
+/// Number of plant-side entries in the packed vector; the coupled mechanics' and the controller's follow.
+pub const PLANT_LEN: usize = 6;
 
 const FORCE: usize = 0;
 const SPOOL: usize = 1;
@@ -45,8 +33,6 @@ const ACCEL_DIST: usize = 2;
 const PISTON_POSITION: usize = 3;
 const PISTON_VELOCITY: usize = 4;
 const MEAN_PRESSURE: usize = 5;
-const KNEE_ANGLE: usize = 6;
-const KNEE_RATE: usize = 7;
 
 /// Names of the plant-side entries, in packed order (used in divergence reports).
 const NAMES: [&str; PLANT_LEN] = [
@@ -56,8 +42,6 @@ const NAMES: [&str; PLANT_LEN] = [
     "predicted_piston_m",
     "predicted_piston_velocity_m_s",
     "mean_chamber_pressure_pa",
-    "knee_angle_rad",
-    "knee_rate_rad_s",
 ];
 
 impl State {
@@ -71,8 +55,6 @@ impl State {
         x[PISTON_POSITION] = self.piston.position_m;
         x[PISTON_VELOCITY] = self.piston.velocity_m_s;
         x[MEAN_PRESSURE] = self.hyd.mean_pressure_pa;
-        x[KNEE_ANGLE] = self.knee.angle_rad;
-        x[KNEE_RATE] = self.knee.rate_rad_s;
     }
 
     /// The plant-side state from the first [`PLANT_LEN`] entries of a packed vector (which
@@ -87,7 +69,6 @@ impl State {
                 mean_pressure_pa: x[MEAN_PRESSURE],
             },
             piston: PistonState { position_m: x[PISTON_POSITION], velocity_m_s: x[PISTON_VELOCITY] },
-            knee: KneeState { angle_rad: x[KNEE_ANGLE], rate_rad_s: x[KNEE_RATE] },
         }
     }
 
@@ -115,7 +96,6 @@ mod tests {
         s.hyd.force_n = 1.0;
         s.hyd.mean_pressure_pa = 2.0;
         s.piston.velocity_m_s = 3.0;
-        s.knee.rate_rad_s = 5.0;
         let mut x = [0.0; PLANT_LEN];
         s.pack_into(&mut x);
         assert_eq!(State::unpack(&x), s);

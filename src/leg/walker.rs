@@ -1,0 +1,601 @@
+//! The reduced engine's walking leg (`leg.engine = "reduced"` with `hip.mode = "carriage"`,
+//! issue 24): the leg on the pelvis carriage as one planar multibody in five generalized
+//! coordinates,
+//!
+//! ```text
+//! g = (x_p, z_p, h, k, a)   pelvis fore-aft and height (m), hip flexion, knee flexion,
+//!                           ankle dorsiflexion (rad)
+//! M(g) g'' = Q_gravity + Q_contact + Q_joints + Q_applied - b(g, g')
+//! ```
+//! The closed cylinder loop is reduced to the knee: the barrel hinge and the rod slide are
+//! functions of the knee angle (`beta(k)`, `s(k)` from the loop solution, tabulated with their
+//! first and second derivatives), so the chain is a tree in `g`. Every link's centre of mass and
+//! angle, their Jacobians `J = d(c, alpha)/dg` and the velocity-product accelerations
+//! `J' g'` come from one forward pass down the tree per evaluation; then
+//! `M = m_pelvis [x, z] + sum_i m_i J_c,i^T J_c,i + I_i J_alpha,i^T J_alpha,i`,
+//! `b = sum_i m_i J_c,i^T (J' g')_c,i + I_i J_alpha,i (J' g')_alpha,i`, and a Cholesky solve.
+//! The pelvis is a point mass on the carriage (its rotation is locked, as on the Rapier
+//! carriage); the thigh hangs from it at the hip. A locked hip or tether removes its
+//! coordinate.
+//!
+//! Forces, all explicit functions of the state evaluated at every integrator stage: gravity;
+//! the URDF's joint damping (knee, barrel hinge and rod slide reflected to the knee through the
+//! loop, ankle); the sole's compliant contact, the same law as the Rapier engine's
+//! ([`super::ground`]: Hunt-Crossley spheres of the URDF's collision shapes, anchor-spring
+//! friction), with the friction anchors held over a step (set, slipped and moved with the belt
+//! at the step's start, as the Rapier engine does; within the step each anchor moves with the
+//! belt and the friction force is clipped at `mu F_n`: Coulomb friction regularised by the
+//! anchor spring); and what the plant applies (cylinder, body, end stops, cuff).
+
+use super::error::LegError;
+use super::ground::{sphere_force, CompliantContact, ContactReading, GroundConfig, ReadingSum, CORNER_RADIUS_M};
+use super::model::{CollisionShape, JointKind, LegSpec, GRAVITY_M_S2};
+use super::planar::{Pose2, P2};
+
+/// Number of generalized coordinates.
+pub const NG: usize = 5;
+/// Length of the mechanical state (coordinates, then rates).
+pub const NX: usize = 2 * NG;
+/// Index of the pelvis's fore-aft position in `g`.
+pub const PX: usize = 0;
+/// Index of the pelvis height.
+pub const PZ: usize = 1;
+/// Index of the hip flexion.
+pub const HIP: usize = 2;
+/// Index of the knee flexion.
+pub const KNEE: usize = 3;
+/// Index of the ankle dorsiflexion.
+pub const ANKLE: usize = 4;
+/// Names of the state entries (divergence reports).
+pub const STATE_NAMES: [&str; NX] = [
+    "pelvis_x_m",
+    "pelvis_z_m",
+    "hip_angle_rad",
+    "knee_angle_rad",
+    "ankle_angle_rad",
+    "pelvis_x_rate_m_s",
+    "pelvis_z_rate_m_s",
+    "hip_rate_rad_s",
+    "knee_rate_rad_s",
+    "ankle_rate_rad_s",
+];
+
+/// Most links the engine takes (their kinematics live on the stack).
+const MAX_LINKS: usize = 32;
+/// Grid points of the loop table.
+const N_TABLE: usize = 6001;
+/// Margin of the loop table beyond the knee range (rad).
+const MARGIN_RAD: f64 = 1.0;
+/// Step of the loop table's numerical derivatives (rad).
+const H: f64 = 1e-4;
+
+/// How a joint's coordinate follows `g`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Coord {
+    /// Fixed joint.
+    Zero,
+    /// The knee angle itself.
+    Knee,
+    /// Loop table column (0: barrel hinge, 3: rod slide).
+    Loop(usize),
+    /// The ankle angle.
+    Ankle,
+}
+
+/// One joint of the tree, planar.
+#[derive(Debug, Clone, Copy)]
+struct TreeJoint {
+    parent: usize,
+    child: usize,
+    origin: Pose2,
+    /// Hinge: +1 / -1 (the axis's y sign); slider: 0.
+    sign: f64,
+    /// Slider direction in the parent frame after the origin's rotation.
+    slide: P2,
+    coord: Coord,
+}
+
+/// One contact sphere: its link, centre in the link frame (m), radius (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sphere {
+    /// Link index.
+    pub link: usize,
+    /// Centre in the link frame (m).
+    pub center: P2,
+    /// Radius (m).
+    pub radius_m: f64,
+}
+
+/// Kinematics of one link frame: pose, velocity, Jacobians and velocity-product acceleration.
+#[derive(Debug, Clone, Copy, Default)]
+struct Kin {
+    t: P2,
+    a: f64,
+    v: P2,
+    w: f64,
+    jt: [P2; NG],
+    ja: [f64; NG],
+    bt: P2,
+    ba: f64,
+}
+
+/// `d/da (R(a) u) = perp(R(a) u)` for the rotation of [`P2::rot`].
+fn perp(u: P2) -> P2 {
+    P2::new(u.z, -u.x)
+}
+
+impl Kin {
+    /// A point fixed in this frame at world offset `u` from the frame's origin: its position,
+    /// velocity, Jacobian and velocity-product acceleration.
+    fn point(&self, u: P2) -> (P2, P2, [P2; NG], P2) {
+        let pu = perp(u);
+        let jt = std::array::from_fn(|i| self.jt[i].plus(pu.scale(self.ja[i])));
+        let b = self.bt.plus(pu.scale(self.ba)).minus(u.scale(self.w * self.w));
+        (self.t.plus(u), self.v.plus(pu.scale(self.w)), jt, b)
+    }
+}
+
+/// The walking leg's model, built once per run.
+#[derive(Debug, Clone)]
+pub struct WalkerModel {
+    spec: LegSpec,
+    joints: Vec<TreeJoint>,
+    /// Per link: mass (kg), centre of mass in the link frame (m), I_yy (kg m^2).
+    links: Vec<(f64, P2, f64)>,
+    lo: f64,
+    step: f64,
+    /// Per grid point: beta, beta', beta'', s, s', s''.
+    table: Vec<[f64; 6]>,
+    pelvis_mass_kg: f64,
+    /// Damping of the knee, barrel hinge, rod slide and ankle (N m s/rad, N s/m).
+    damping: [f64; 4],
+    locked: [bool; NG],
+    spheres: Vec<Sphere>,
+    law: CompliantContact,
+    friction: f64,
+    ground_z_m: f64,
+    belt_speed_m_s: f64,
+    /// Links of the gait lab's shank and foot segments.
+    segments: Vec<usize>,
+}
+
+/// What a stage applies besides gravity, damping and contact.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Applied {
+    /// Generalized forces (N, N m) on `g`: tether, support, hip, knee, ankle torques.
+    pub q: [f64; NG],
+    /// A force (N, x and z in the link's frame) at a point (m, in the link's frame) of a link.
+    pub point: Option<(usize, P2, P2)>,
+}
+
+/// The friction anchors over a step: per sphere, the anchor on the belt at the step's start
+/// (m), and the time since the start (s).
+#[derive(Debug, Clone, Copy)]
+pub struct Anchors<'a> {
+    /// Per sphere (None: not touching at the step's start).
+    pub x_m: &'a [Option<f64>],
+    /// Time since the step's start (s): the anchors have moved with the belt by this much.
+    pub since_s: f64,
+}
+
+/// The result of one evaluation.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Evaluation {
+    /// `g''`.
+    pub accel: [f64; NG],
+    /// What the ground did.
+    pub contact: ContactReading,
+    /// `(M^-1)_kk`, the knee's compliance with every other coordinate free (1/(kg m^2)).
+    pub knee_compliance: f64,
+}
+
+impl WalkerModel {
+    /// The model of `spec` on the carriage with a pelvis of `pelvis_mass_kg` (kg) over the
+    /// ground `ground` (compliant law only), the hip and tether locked as given. Refuses
+    /// non-planar legs, joints the engine does not know, mesh or rolled collision shapes, and
+    /// rigid contact, naming what.
+    pub fn new(
+        spec: &LegSpec,
+        pelvis_mass_kg: f64,
+        ground: Option<&GroundConfig>,
+        hip_locked: bool,
+        tether_locked: bool,
+    ) -> Result<Self, LegError> {
+        if spec.links.len() > MAX_LINKS {
+            return Err(LegError::Unsupported(format!(
+                "{} links: the reduced engine's walking leg takes at most {MAX_LINKS}",
+                spec.links.len()
+            )));
+        }
+        let joints = tree_joints(spec)?;
+        let (lo, hi) = spec.knee_range_rad();
+        let (lo, hi) = (lo - MARGIN_RAD, hi + MARGIN_RAD);
+        let step = (hi - lo) / (N_TABLE - 1) as f64;
+        let table = loop_table(spec, lo, step)?;
+        let links = spec.links.iter().map(|l| (l.mass_kg, P2::new(l.com_m[0], l.com_m[2]), l.inertia_kg_m2[1][1])).collect();
+        let damping = [
+            spec.knee_joint().damping,
+            spec.barrel_joint().damping,
+            spec.rod_joint().damping,
+            spec.ankle_joint().map_or(0.0, |a| a.damping),
+        ];
+        let mut locked = [false; NG];
+        locked[HIP] = hip_locked;
+        locked[PX] = tether_locked;
+        locked[ANKLE] = spec.ankle.is_none();
+        let (law, friction, ground_z_m, belt_speed_m_s, spheres) = match ground {
+            None => (CompliantContact { modulus_pa: 0.0, dissipation_s_per_m: 0.0, friction_stiffness_n_per_m: 1.0 }, 0.0, 0.0, 0.0, Vec::new()),
+            Some(g) => {
+                let law = g.compliant.ok_or_else(|| {
+                    LegError::Unsupported(
+                        "the reduced engine's contact is the compliant law: ground.contact = \"rigid\" needs leg.engine = \"rapier\"".into(),
+                    )
+                })?;
+                (law, g.friction, g.height_m, g.belt_speed_m_s, contact_spheres(spec)?)
+            }
+        };
+        let knee = spec.knee_joint();
+        let foot = spec.ankle_joint().map_or(knee.child, |a| a.child);
+        let segments = (0..spec.links.len())
+            .filter(|&l| {
+                let a = spec.fixed_chain(l).0;
+                a == spec.fixed_chain(knee.child).0 || a == spec.fixed_chain(foot).0
+            })
+            .collect();
+        Ok(Self {
+            spec: spec.clone(),
+            joints,
+            links,
+            lo,
+            step,
+            table,
+            pelvis_mass_kg,
+            damping,
+            locked,
+            spheres,
+            law,
+            friction,
+            ground_z_m,
+            belt_speed_m_s,
+            segments,
+        })
+    }
+
+    /// The leg.
+    pub fn spec(&self) -> &LegSpec {
+        &self.spec
+    }
+
+    /// The contact spheres.
+    pub fn spheres(&self) -> &[Sphere] {
+        &self.spheres
+    }
+
+    /// Belt speed (m/s).
+    pub fn belt_speed_m_s(&self) -> f64 {
+        self.belt_speed_m_s
+    }
+
+    /// Whether coordinate `i` is locked.
+    pub fn locked(&self, i: usize) -> bool {
+        self.locked[i]
+    }
+
+    fn loop_at(&self, k: f64) -> [f64; 6] {
+        let u = ((k - self.lo) / self.step).clamp(0.0, (N_TABLE - 1) as f64);
+        let i = (u as usize).min(N_TABLE - 2);
+        let f = u - i as f64;
+        let (a, b) = (&self.table[i], &self.table[i + 1]);
+        std::array::from_fn(|c| a[c] + (b[c] - a[c]) * f)
+    }
+
+    /// Kinematics of every link frame at state `x` into `out` (indexed like the links).
+    fn kinematics(&self, x: &[f64; NX], out: &mut [Kin; MAX_LINKS]) {
+        let (g, gd) = (&x[..NG], &x[NG..]);
+        let root = &mut out[self.spec.root];
+        *root = Kin { t: P2::new(g[PX], g[PZ]), a: -g[HIP], v: P2::new(gd[PX], gd[PZ]), w: -gd[HIP], ..Kin::default() };
+        root.jt[PX] = P2::new(1.0, 0.0);
+        root.jt[PZ] = P2::new(0.0, 1.0);
+        root.ja[HIP] = -1.0;
+        let lp = self.loop_at(g[KNEE]);
+        let kd = gd[KNEE];
+        for j in &self.joints {
+            // The joint's coordinate, its rate, its gradient in g and its velocity-product
+            // acceleration.
+            let (q, qd, grad, qb) = match j.coord {
+                Coord::Zero => (0.0, 0.0, (KNEE, 0.0), 0.0),
+                Coord::Knee => (g[KNEE], kd, (KNEE, 1.0), 0.0),
+                Coord::Loop(c) => (lp[c], lp[c + 1] * kd, (KNEE, lp[c + 1]), lp[c + 2] * kd * kd),
+                Coord::Ankle => (g[ANKLE], gd[ANKLE], (ANKLE, 1.0), 0.0),
+            };
+            let p = out[j.parent];
+            let mut c = p;
+            let o = j.origin.t.rot(p.a);
+            if j.sign != 0.0 || j.coord == Coord::Zero {
+                let (_, v, jt, bt) = p.point(o);
+                c.t = p.t.plus(o);
+                c.a = p.a + j.origin.a + j.sign * q;
+                c.v = v;
+                c.w = p.w + j.sign * qd;
+                c.jt = jt;
+                c.ja[grad.0] += j.sign * grad.1;
+                c.bt = bt;
+                c.ba = p.ba + j.sign * qb;
+            } else {
+                let e = j.slide.rot(p.a);
+                let u = o.plus(e.scale(q));
+                let (t, v, mut jt, bt) = p.point(u);
+                jt[grad.0] = jt[grad.0].plus(e.scale(grad.1));
+                c.t = t;
+                c.a = p.a + j.origin.a;
+                c.v = v.plus(e.scale(qd));
+                c.jt = jt;
+                c.bt = bt.plus(perp(e).scale(2.0 * p.w * qd)).plus(e.scale(qb));
+            }
+            out[j.child] = c;
+        }
+    }
+
+    /// Evaluate the dynamics at state `x` with `applied` forces and the friction `anchors`.
+    pub fn evaluate(&self, x: &[f64; NX], applied: &Applied, anchors: &Anchors) -> Evaluation {
+        let mut kin = [Kin::default(); MAX_LINKS];
+        self.kinematics(x, &mut kin);
+        let mut m = [[0.0; NG]; NG];
+        let mut q = applied.q;
+        m[PX][PX] = self.pelvis_mass_kg;
+        m[PZ][PZ] = self.pelvis_mass_kg;
+        q[PZ] -= self.pelvis_mass_kg * GRAVITY_M_S2;
+        for (l, &(mass, com, iyy)) in self.links.iter().enumerate() {
+            let k = &kin[l];
+            let (_, _, jc, bc) = k.point(com.rot(k.a));
+            for r in 0..NG {
+                for c in r..NG {
+                    m[r][c] += mass * jc[r].dot(jc[c]) + iyy * k.ja[r] * k.ja[c];
+                }
+                q[r] -= mass * (jc[r].dot(bc) + GRAVITY_M_S2 * jc[r].z) + iyy * k.ja[r] * k.ba;
+            }
+        }
+        let contact = self.contact(&kin, anchors, &mut q);
+        if let Some((link, p, f)) = applied.point {
+            let k = &kin[link];
+            let (_, _, jp, _) = k.point(p.rot(k.a));
+            let f = f.rot(k.a);
+            (0..NG).for_each(|r| q[r] += jp[r].dot(f));
+        }
+        let lp = self.loop_at(x[KNEE]);
+        let [ck, cb, cr, ca] = self.damping;
+        q[KNEE] -= (ck + cb * lp[1] * lp[1] + cr * lp[4] * lp[4]) * x[NG + KNEE];
+        q[ANKLE] -= ca * x[NG + ANKLE];
+        for r in 0..NG {
+            for c in 0..r {
+                m[r][c] = m[c][r];
+            }
+        }
+        for i in (0..NG).filter(|&i| self.locked[i]) {
+            for c in 0..NG {
+                (m[i][c], m[c][i]) = (0.0, 0.0);
+            }
+            (m[i][i], q[i]) = (1.0, 0.0);
+        }
+        let l = cholesky(&m);
+        let accel = solve(&l, q);
+        let mut e = [0.0; NG];
+        e[KNEE] = 1.0;
+        Evaluation { accel, contact, knee_compliance: solve(&l, e)[KNEE] }
+    }
+
+    /// The contact forces at the link kinematics `kin`, added to `q`; what they add up to.
+    fn contact(&self, kin: &[Kin; MAX_LINKS], anchors: &Anchors, q: &mut [f64; NG]) -> ContactReading {
+        let mut r = ContactReading::default();
+        let mut sum = ReadingSum::default();
+        let belt = self.belt_speed_m_s;
+        for (i, s) in self.spheres.iter().enumerate() {
+            let k = &kin[s.link];
+            let u = s.center.rot(k.a);
+            let depth = self.ground_z_m + s.radius_m - (k.t.z + u.z);
+            if depth <= 0.0 {
+                continue;
+            }
+            let point = P2::new(k.t.x + u.x, self.ground_z_m);
+            let (_, v, jp, _) = k.point(point.minus(k.t));
+            let mut anchor = anchors.x_m.get(i).copied().flatten().map(|a| a - belt * anchors.since_s);
+            let (fx, fz) = sphere_force(&self.law, self.friction, s.radius_m, depth, point.x, [v.x, v.z], belt, &mut anchor);
+            let f = P2::new(fx, fz);
+            (0..NG).for_each(|c| q[c] += jp[c].dot(f));
+            sum.add(&mut r, [point.x, point.z], [fx, fz], depth);
+        }
+        sum.finish(&mut r);
+        r
+    }
+
+    /// The friction anchors at the start of a step at state `x` (the Rapier engine's rule): a
+    /// sphere off the ground has none, one that touches keeps its anchor or gets one where it
+    /// touches, one that slips has its anchor moved to where the spring carries `mu F_n`.
+    pub fn update_anchors(&self, x: &[f64; NX], anchors: &mut [Option<f64>]) {
+        let mut kin = [Kin::default(); MAX_LINKS];
+        self.kinematics(x, &mut kin);
+        for (s, a) in self.spheres.iter().zip(anchors.iter_mut()) {
+            let k = &kin[s.link];
+            let u = s.center.rot(k.a);
+            let depth = self.ground_z_m + s.radius_m - (k.t.z + u.z);
+            if depth <= 0.0 {
+                *a = None;
+                continue;
+            }
+            let point = P2::new(k.t.x + u.x, self.ground_z_m);
+            let (_, v, _, _) = k.point(point.minus(k.t));
+            sphere_force(&self.law, self.friction, s.radius_m, depth, point.x, [v.x, v.z], self.belt_speed_m_s, a);
+        }
+    }
+
+    /// The momentum (kg m/s, x and z), angular momentum about the world origin (kg m^2/s,
+    /// about +y) and weight moment about the origin (N m, about +y) of the gait lab's shank
+    /// and foot segments, their mass (kg), and the knee centre (m), at state `x`.
+    pub fn segment_momenta(&self, x: &[f64; NX]) -> ([f64; 2], f64, f64, f64, P2) {
+        let mut kin = [Kin::default(); MAX_LINKS];
+        self.kinematics(x, &mut kin);
+        let (mut p, mut h, mut wm, mut mass) = (P2::default(), 0.0, 0.0, 0.0);
+        for &l in &self.segments {
+            let (m, com, iyy) = self.links[l];
+            let k = &kin[l];
+            let (c, v, _, _) = k.point(com.rot(k.a));
+            p = p.plus(v.scale(m));
+            // (c x m v).y = m (c.z v.x - c.x v.z); the link's spin w is about +y.
+            h += m * (c.z * v.x - c.x * v.z) + iyy * k.w;
+            wm += -m * GRAVITY_M_S2 * -c.x;
+            mass += m;
+        }
+        let knee = self.spec.knee_joint();
+        let kc = kin[knee.parent].t.plus(super::model::joint_origin(knee).t.rot(kin[knee.parent].a));
+        ([p.x, p.z], h, wm, mass, kc)
+    }
+
+    /// Total energy (J): kinetic of every link and the pelvis, potential in gravity (from
+    /// z = 0), at state `x`.
+    pub fn energy_j(&self, x: &[f64; NX]) -> f64 {
+        let mut kin = [Kin::default(); MAX_LINKS];
+        self.kinematics(x, &mut kin);
+        let vp = (x[NG + PX], x[NG + PZ]);
+        let mut e = 0.5 * self.pelvis_mass_kg * (vp.0 * vp.0 + vp.1 * vp.1) + self.pelvis_mass_kg * GRAVITY_M_S2 * x[PZ];
+        for (l, &(m, com, iyy)) in self.links.iter().enumerate() {
+            let k = &kin[l];
+            let (c, v, _, _) = k.point(com.rot(k.a));
+            e += 0.5 * m * v.dot(v) + 0.5 * iyy * k.w * k.w + m * GRAVITY_M_S2 * c.z;
+        }
+        e
+    }
+}
+
+/// The joints in topological order with their coordinates; refuses what the engine cannot do.
+fn tree_joints(spec: &LegSpec) -> Result<Vec<TreeJoint>, LegError> {
+    let mut out = Vec::new();
+    for &ji in &spec.topo_joints {
+        let j = &spec.joints[ji];
+        let off_y = j.axis[0].abs() + j.axis[2].abs();
+        let hinge = j.kind.is_hinge();
+        if (hinge && off_y > 1e-9) || j.origin_rpy[0].abs() + j.origin_rpy[2].abs() > 1e-9 {
+            return Err(LegError::Unsupported(format!(
+                "joint '{}' is not in the sagittal plane: the reduced engine handles planar legs (hinges about y)",
+                j.name
+            )));
+        }
+        let coord = if ji == spec.knee {
+            Coord::Knee
+        } else if ji == spec.barrel {
+            Coord::Loop(0)
+        } else if ji == spec.rod {
+            Coord::Loop(3)
+        } else if Some(ji) == spec.ankle {
+            Coord::Ankle
+        } else if j.kind == JointKind::Fixed {
+            Coord::Zero
+        } else {
+            return Err(LegError::Unsupported(format!(
+                "joint '{}' moves but is not the knee, the cylinder's loop or the ankle: the reduced engine cannot move it",
+                j.name
+            )));
+        };
+        if j.kind == JointKind::Prismatic && j.axis[1].abs() > 1e-9 {
+            return Err(LegError::Unsupported(format!("joint '{}' slides out of the sagittal plane", j.name)));
+        }
+        let origin = super::model::joint_origin(j);
+        let (sign, slide) = match j.kind {
+            JointKind::Prismatic => (0.0, P2::new(j.axis[0], j.axis[2]).rot(origin.a)),
+            JointKind::Fixed => (0.0, P2::default()),
+            _ => (j.axis[1].signum(), P2::default()),
+        };
+        out.push(TreeJoint { parent: j.parent, child: j.child, origin, sign, slide, coord });
+    }
+    Ok(out)
+}
+
+/// The loop's barrel angle and rod slide with their first two knee derivatives on the grid.
+fn loop_table(spec: &LegSpec, lo: f64, step: f64) -> Result<Vec<[f64; 6]>, LegError> {
+    let at = |k: f64| spec.loop_solution(k).map(|s| (s.barrel_rad, s.rod_m));
+    let mut table: Vec<[f64; 6]> = Vec::with_capacity(N_TABLE);
+    for i in 0..N_TABLE {
+        let k = lo + i as f64 * step;
+        let row = match (at(k - H), at(k), at(k + H)) {
+            (Some(m), Some(c), Some(p)) => {
+                // The barrel angle is wrapped to (-pi, pi]: unwrap the neighbours.
+                let un = |a: f64| c.0 + (a - c.0 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+                let (bm, bp) = (un(m.0), un(p.0));
+                Some([c.0, (bp - bm) / (2.0 * H), (bp - 2.0 * c.0 + bm) / (H * H), c.1, (p.1 - m.1) / (2.0 * H), (p.1 - 2.0 * c.1 + m.1) / (H * H)])
+            }
+            _ => None,
+        };
+        // Beyond where the loop closes a row repeats its neighbour (the stops keep the knee
+        // away from there).
+        match (row, table.last()) {
+            (Some(r), _) => table.push(r),
+            (None, Some(&r)) => table.push(r),
+            (None, None) => table.push([f64::NAN; 6]),
+        }
+    }
+    let first = table.iter().position(|r| !r[0].is_nan()).ok_or_else(|| {
+        LegError::InvalidArgument("the loop closes nowhere in the knee range".into())
+    })?;
+    let r = table[first];
+    table[..first].iter_mut().for_each(|x| *x = r);
+    Ok(table)
+}
+
+/// The compliant law's contact spheres in their links' frames (planar): the geometry of the
+/// Rapier engine's (`ground::contact_spheres`).
+fn contact_spheres(spec: &LegSpec) -> Result<Vec<Sphere>, LegError> {
+    let mut out = Vec::new();
+    for c in &spec.collisions {
+        let name = &spec.links[c.link].name;
+        if c.origin_rpy[0].abs() + c.origin_rpy[2].abs() > 1e-9 {
+            return Err(LegError::Unsupported(format!(
+                "link '{name}' <collision> has roll or yaw: the reduced engine's contact is planar"
+            )));
+        }
+        let r = CORNER_RADIUS_M;
+        let corners = |x: f64, z: f64| {
+            let (x, z) = (x.max(0.0), z.max(0.0));
+            vec![P2::new(x, z), P2::new(-x, z), P2::new(x, -z), P2::new(-x, -z)]
+        };
+        let (points, radius) = match &c.shape {
+            CollisionShape::Sphere { radius } => (vec![P2::default()], *radius),
+            CollisionShape::Capsule { radius, length } => (vec![P2::new(0.0, length / 2.0), P2::new(0.0, -length / 2.0)], *radius),
+            CollisionShape::Box { size } => (corners(size[0] / 2.0 - r, size[2] / 2.0 - r), r),
+            CollisionShape::Cylinder { radius, length } => (corners(radius - r, length / 2.0 - r), r),
+            CollisionShape::Mesh { filename } => {
+                return Err(LegError::Unsupported(format!(
+                    "link '{name}' <collision> is a mesh ({filename}): ground contact needs boxes, cylinders, spheres or capsules"
+                )))
+            }
+        };
+        let origin = Pose2::new(c.origin_xyz[0], c.origin_xyz[2], c.origin_rpy[1]);
+        out.extend(points.into_iter().map(|p| Sphere { link: c.link, center: origin.apply(p), radius_m: radius }));
+    }
+    Ok(out)
+}
+
+/// Lower Cholesky factor of a symmetric positive definite matrix.
+fn cholesky(m: &[[f64; NG]; NG]) -> [[f64; NG]; NG] {
+    let mut l = [[0.0; NG]; NG];
+    for i in 0..NG {
+        for j in 0..=i {
+            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
+            if i == j {
+                l[i][i] = (m[i][i] - s).max(1e-300).sqrt();
+            } else {
+                l[i][j] = (m[i][j] - s) / l[j][j];
+            }
+        }
+    }
+    l
+}
+
+/// Solve `L L^T x = b`.
+fn solve(l: &[[f64; NG]; NG], mut b: [f64; NG]) -> [f64; NG] {
+    for i in 0..NG {
+        b[i] = (b[i] - (0..i).map(|k| l[i][k] * b[k]).sum::<f64>()) / l[i][i];
+    }
+    for i in (0..NG).rev() {
+        b[i] = (b[i] - (i + 1..NG).map(|k| l[k][i] * b[k]).sum::<f64>()) / l[i][i];
+    }
+    b
+}

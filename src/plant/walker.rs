@@ -1,0 +1,313 @@
+//! The walking leg on the reduced engine (`leg.engine = "reduced"` on the pelvis carriage): the
+//! planar multibody of [`crate::leg::walker`] as a plant. With the hydraulic actuator the loop
+//! integrates its ten states in the same ODE as the hydraulics and the controller
+//! ([`CoupledMechanics`]); with a prescribed force or none, the plant integrates them itself
+//! (RK4 under the step's force). The body's forces (hip, wearer's knee and ankle, tether,
+//! support) and the end stops' torques are held over a step, as on the Rapier engine; gravity,
+//! joint damping, the cylinder force and the compliant contact are evaluated at every stage.
+
+use super::{
+    CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs, StageInputs,
+};
+use crate::error::{Error, Result};
+use crate::human::{BodyForces, BodyState};
+use crate::integrator::Integrator;
+use crate::leg::planar::P2;
+use crate::leg::walker::{Anchors, Applied, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES};
+use crate::leg::geometry::cylinder_kinematics_at;
+use crate::leg::ContactReading;
+use crate::record::{ContactRow, LegRow};
+use std::sync::Arc;
+
+/// What the plant knows at the start of a step besides the state.
+#[derive(Debug, Clone, Copy, Default)]
+struct StepStart {
+    /// What the ground does now.
+    contact: ContactReading,
+    /// `(M^-1)_kk` now (1/(kg m^2)).
+    knee_compliance: f64,
+    /// Momentum (x, z), angular momentum and weight moment about the origin of the shank and
+    /// foot segments, their mass.
+    momenta: ([f64; 2], f64, f64, f64),
+}
+
+/// The reduced engine's walking leg.
+pub struct WalkerPlant {
+    model: Arc<WalkerModel>,
+    x: [f64; NX],
+    anchors: Vec<Option<f64>>,
+    piston: PistonTrack,
+    now: StepStart,
+    /// Start of the coming step (s) and its length (s).
+    t_step_s: f64,
+    dt_s: f64,
+    /// The cuff point in the shank's frame (m) and the shank's link.
+    cuff: (usize, P2),
+    /// The end stops, their torques on the knee and the ankle over the coming step (N m), and
+    /// what they did.
+    stops: crate::leg::EndStops,
+    stop_nm: (f64, f64),
+    report: crate::leg::StopReport,
+    /// The body's forces over the last step.
+    body: BodyForces,
+    ground_height_m: Option<f64>,
+    lab_knee_moment_nm: f64,
+}
+
+impl WalkerPlant {
+    /// The plant of a resolved setup on the carriage with its walking model, stepped by `dt_s`
+    /// (s).
+    pub fn new(setup: &LegSetup, model: Arc<WalkerModel>, dt_s: f64) -> Result<Self> {
+        let body = setup.body.as_ref().ok_or_else(|| Error::Usage("the walking leg needs the carriage".into()))?;
+        let d = body.targets.at(0.0);
+        let ground_height_m = setup.ground.map(|g| g.height_m);
+        let mut x = [0.0; NX];
+        x[PZ] = ground_height_m.unwrap_or(0.0) + d.pelvis_height_m + body.hip.initial_clearance_m;
+        x[HIP] = d.hip.value;
+        x[KNEE] = setup.start.knee_rad;
+        x[ANKLE] = body.ankle_rad;
+        x[NG + KNEE] = setup.start.knee_rate_rad_s;
+        let (l, arm, _) = cylinder_kinematics_at(model.spec(), x[KNEE]);
+        let knee = setup.model.knee_joint();
+        let cuff = (knee.child, P2::new(setup.cuff_point_m[0], setup.cuff_point_m[2]));
+        let mut plant = Self {
+            anchors: vec![None; model.spheres().len()],
+            x,
+            piston: PistonTrack::new(l, arm * x[NG + KNEE], 0.0),
+            now: StepStart::default(),
+            t_step_s: 0.0,
+            dt_s,
+            cuff,
+            stops: setup.stops,
+            stop_nm: (0.0, 0.0),
+            report: crate::leg::StopReport::default(),
+            body: BodyForces::default(),
+            ground_height_m,
+            lab_knee_moment_nm: 0.0,
+            model,
+        };
+        plant.start_step();
+        // The free piston acceleration at rest in the record, as the knee-only engine gives it.
+        let free = plant.piston_accel(&plant.x, &Applied::default(), 0.0);
+        plant.piston = PistonTrack::new(l, arm * x[NG + KNEE], free);
+        Ok(plant)
+    }
+
+    /// The start of a step at the state now: the friction anchors, what the ground does, the
+    /// knee's compliance, the segments' momenta and the end stops' torques over the step.
+    fn start_step(&mut self) {
+        let m = &self.model;
+        m.update_anchors(&self.x, &mut self.anchors);
+        let e = m.evaluate(&self.x, &Applied::default(), &Anchors { x_m: &self.anchors, since_s: 0.0 });
+        let (p, h, wm, mass, _) = m.segment_momenta(&self.x);
+        self.now = StepStart { contact: e.contact, knee_compliance: e.knee_compliance, momenta: (p, h, wm, mass) };
+        let (q, qd) = (self.x[KNEE], self.x[NG + KNEE]);
+        // The knee's inertia with every other coordinate free: the smallest it has (a stop
+        // computed for it does not overshoot).
+        let inertia = 1.0 / e.knee_compliance;
+        let knee = self.stops.knee.torque(q, qd, inertia, self.dt_s, 0.5);
+        let ankle = match (self.stops.ankle, m.locked(ANKLE)) {
+            (Some(a), false) => {
+                a.torque(self.x[ANKLE], self.x[NG + ANKLE], self.stops.ankle_inertia_kg_m2, self.dt_s, 0.5)
+            }
+            _ => 0.0,
+        };
+        self.stop_nm = (knee, ankle);
+    }
+
+    /// What the plant applies at state `x` besides gravity, damping and contact: the body's
+    /// forces `body`, the stops, the net cylinder force `force_n` (N) and the cuff force
+    /// `cuff_force_n` (N, as [`PlantInputs::cuff_force_n`]).
+    fn applied(&self, x: &[f64; NX], body: &BodyForces, force_n: f64, cuff_force_n: f64) -> Applied {
+        let arm = cylinder_kinematics_at(self.model.spec(), x[KNEE]).1;
+        let mut q = [0.0; NG];
+        q[PX] = body.pelvis_force_n[0];
+        q[PZ] = body.pelvis_force_n[1];
+        q[HIP] = body.hip_torque_nm;
+        q[KNEE] = body.knee_torque_nm + self.stop_nm.0 + force_n * arm;
+        q[ANKLE] = body.ankle_torque_nm + self.stop_nm.1;
+        let point = (cuff_force_n != 0.0).then(|| {
+            // Perpendicular to the shank where the cuff moves when the knee flexes; positive w1
+            // pushes the knee the way that shortens the cylinder.
+            let (link, p) = self.cuff;
+            let sign = self.model.spec().knee_joint().axis[1].signum();
+            let dir = P2::new(p.z, -p.x).scale(sign / p.norm());
+            (link, p, dir.scale(-arm.signum() * cuff_force_n))
+        });
+        Applied { q, point }
+    }
+
+    /// The state's derivative at `t_s` with `applied` into `dx`; returns the knee acceleration.
+    fn rates(&self, t_s: f64, x: &[f64; NX], applied: &Applied, dx: &mut [f64]) -> f64 {
+        let e = self.model.evaluate(x, applied, &Anchors { x_m: &self.anchors, since_s: t_s - self.t_step_s });
+        dx[..NG].copy_from_slice(&x[NG..]);
+        dx[NG..NX].copy_from_slice(&e.accel);
+        e.accel[KNEE]
+    }
+
+    /// Piston acceleration (m/s^2) at state `x` with `applied`, at `t_s`.
+    fn piston_accel(&self, x: &[f64; NX], applied: &Applied, t_s: f64) -> f64 {
+        let mut dx = [0.0; NX];
+        let qdd = self.rates(t_s, x, applied, &mut dx);
+        let (_, arm, slope) = cylinder_kinematics_at(self.model.spec(), x[KNEE]);
+        arm * qdd + slope * x[NG + KNEE] * x[NG + KNEE]
+    }
+
+    /// Effective mass at the cylinder now (kg): `1 / (L'^2 (M^-1)_kk)`.
+    fn effective_mass_kg(&self) -> f64 {
+        let arm = cylinder_kinematics_at(self.model.spec(), self.x[KNEE]).1;
+        1.0 / (arm * arm * self.now.knee_compliance)
+    }
+
+    /// The gait lab's knee moment over the step from `before`: the shank and foot segments'
+    /// Newton-Euler balance with the ground reaction averaged over the step (as the Rapier
+    /// engine's `Leg::lab_knee_moment_nm`, whose contact force is constant over a step).
+    fn lab_knee_moment(&self, before: &StepStart) -> f64 {
+        let dt = self.dt_s;
+        let (p0, h0, _, _) = before.momenta;
+        let (p1, h1, wm, mass) = self.now.momenta;
+        let (a, b) = (&before.contact, &self.now.contact);
+        let grf = [0.5 * (a.horizontal_n + b.horizontal_n), 0.5 * (a.vertical_n + b.vertical_n)];
+        let grf_moment = 0.5 * (a.moment_origin_y_nm + b.moment_origin_y_nm);
+        let g = crate::leg::model::GRAVITY_M_S2;
+        // Force the thigh side applies at the knee: R = dP/dt - m g - GRF.
+        let r = [(p1[0] - p0[0]) / dt - grf[0], (p1[1] - p0[1]) / dt + g * mass - grf[1]];
+        let kc = self.model.segment_momenta(&self.x).4;
+        // Moment about the origin (about +y): M_k + (K x R).y + weight + ground = dH/dt.
+        let k_cross_r = kc.z * r[0] - kc.x * r[1];
+        let mk = (h1 - h0) / dt - k_cross_r - wm - grf_moment;
+        // Flexion is a rotation about +y: an extensor moment is -y.
+        -mk
+    }
+}
+
+impl CoupledMechanics for WalkerPlant {
+    fn state_names(&self) -> &'static [&'static str] {
+        &STATE_NAMES
+    }
+
+    fn state(&self, x: &mut [f64]) {
+        x.copy_from_slice(&self.x);
+    }
+
+    fn stage(&self, t_s: f64, x: &[f64], inputs: &StageInputs, dx: &mut [f64]) -> CoupledStage {
+        let mut s = [0.0; NX];
+        s.copy_from_slice(&x[..NX]);
+        let (k, kd) = (s[KNEE], s[NG + KNEE]);
+        let (l, arm, slope) = cylinder_kinematics_at(self.model.spec(), k);
+        let v = arm * kd;
+        let body = inputs.body.unwrap_or_default();
+        let applied = self.applied(&s, &body, (inputs.net_force_n)(v), inputs.cuff_force_n);
+        let qdd = self.rates(t_s, &s, &applied, dx);
+        CoupledStage {
+            piston: PistonMotion {
+                position_m: self.piston.position_at(l),
+                velocity_m_s: v,
+                accel_m_s2: arm * qdd + slope * kd * kd,
+            },
+            knee: (k, kd),
+        }
+    }
+}
+
+impl Plant for WalkerPlant {
+    fn piston_at(&self, _t_s: f64) -> PistonMotion {
+        self.piston.motion()
+    }
+
+    fn piston_predictor(&self) -> Option<PistonPredictor> {
+        Some(self.piston.predictor(self.effective_mass_kg(), 0.0, 0.0))
+    }
+
+    fn coupled(&self) -> Option<&dyn CoupledMechanics> {
+        Some(self)
+    }
+
+    fn knee_rad(&self) -> f64 {
+        self.x[KNEE]
+    }
+
+    fn knee_rate_rad_s(&self) -> f64 {
+        self.x[NG + KNEE]
+    }
+
+    fn stop_report(&self) -> Option<crate::leg::StopReport> {
+        Some(self.report)
+    }
+
+    fn body_state(&self) -> Option<BodyState> {
+        let (x, v) = (&self.x[..NG], &self.x[NG..]);
+        Some(BodyState {
+            hip: (x[HIP], v[HIP]),
+            knee: (x[KNEE], v[KNEE]),
+            ankle: (x[ANKLE], v[ANKLE]),
+            pelvis: [x[PX], x[PZ] - self.ground_height_m.unwrap_or(0.0)],
+            pelvis_rate: [v[PX], v[PZ]],
+        })
+    }
+
+    fn advance(&mut self, t_s: f64, inputs: &PlantInputs<'_>) -> Result<f64> {
+        let dt_s = self.dt_s;
+        let force = inputs.cylinder_force_n;
+        let m_eff = self.effective_mass_kg();
+        self.body = inputs.body.unwrap_or_default();
+        self.x = match inputs.mech_end {
+            Some(end) => std::array::from_fn(|i| end[i]),
+            None => {
+                let body = self.body;
+                let f = |t: f64, x: &[f64; NX]| {
+                    let mut dx = [0.0; NX];
+                    self.rates(t, x, &self.applied(x, &body, force, inputs.cuff_force_n), &mut dx);
+                    dx
+                };
+                Integrator::Rk4.step(t_s, dt_s, &self.x, f)
+            }
+        };
+        // The friction anchors are points of the belt.
+        let belt = self.model.belt_speed_m_s();
+        self.anchors.iter_mut().flatten().for_each(|a| *a -= belt * dt_s);
+        self.t_step_s = t_s + dt_s;
+        let before = self.now;
+        self.start_step();
+        if self.ground_height_m.is_some() {
+            self.lab_knee_moment_nm = self.lab_knee_moment(&before);
+        }
+        let (l1, arm1, _) = cylinder_kinematics_at(self.model.spec(), self.x[KNEE]);
+        let dl = l1 - self.piston.length_m();
+        self.piston.record(l1, arm1 * self.x[NG + KNEE], force, m_eff, dt_s);
+        let ankle = self.stops.ankle.filter(|_| !self.model.locked(ANKLE)).map(|_| self.x[ANKLE]);
+        self.report.add(&self.stops, self.x[KNEE], ankle, dt_s);
+        if let Some(i) = self.x.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Diverged { time_s: t_s + dt_s, state: STATE_NAMES[i].into(), value: self.x[i] });
+        }
+        Ok(dl)
+    }
+
+    fn leg_row(&self) -> Option<LegRow> {
+        let (k, kd) = (self.x[KNEE], self.x[NG + KNEE]);
+        Some(LegRow {
+            knee_angle_deg: k.to_degrees(),
+            knee_velocity_deg_s: kd.to_degrees(),
+            hip_angle_deg: self.x[HIP].to_degrees(),
+            cylinder_length_m: self.piston.length_m(),
+            loop_closure_gap_m: 0.0,
+            moment_arm_m: cylinder_kinematics_at(self.model.spec(), k).1,
+        })
+    }
+
+    fn contact_row(&self) -> Option<ContactRow> {
+        let ground = self.ground_height_m?;
+        let c = &self.now.contact;
+        Some(ContactRow {
+            ground_reaction_vertical_n: c.vertical_n,
+            ground_reaction_horizontal_n: c.horizontal_n,
+            contact_penetration_m: c.penetration_m,
+            knee_moment_nm: self.lab_knee_moment_nm,
+            ankle_angle_deg: self.x[ANKLE].to_degrees(),
+            pelvis_height_m: self.x[PZ] - ground,
+            pelvis_x_m: self.x[PX],
+            support_force_n: self.body.pelvis_force_n[1],
+            wearer_knee_torque_nm: self.body.knee_torque_nm,
+        })
+    }
+}
