@@ -61,7 +61,7 @@ pub const STATE_NAMES: [&str; NX] = [
 ];
 
 /// Most links the engine takes (their kinematics live on the stack).
-const MAX_LINKS: usize = 32;
+const MAX_LINKS: usize = 16;
 /// Grid points of the loop table.
 const N_TABLE: usize = 6001;
 /// Margin of the loop table beyond the knee range (rad).
@@ -111,6 +111,8 @@ pub struct Sphere {
 struct Kin {
     t: P2,
     a: f64,
+    /// cos and sin of `a`.
+    cs: (f64, f64),
     v: P2,
     w: f64,
     jt: [P2; NG],
@@ -125,6 +127,12 @@ fn perp(u: P2) -> P2 {
 }
 
 impl Kin {
+    /// `u` (in this frame's axes) in world axes: `u.rot(a)` with the cached cos and sin.
+    fn rot(&self, u: P2) -> P2 {
+        let (c, s) = self.cs;
+        P2::new(u.x * c + u.z * s, -u.x * s + u.z * c)
+    }
+
     /// A point fixed in this frame at world offset `u` from the frame's origin: its position,
     /// velocity, Jacobian and velocity-product acceleration.
     fn point(&self, u: P2) -> (P2, P2, [P2; NG], P2) {
@@ -176,6 +184,25 @@ pub struct Anchors<'a> {
     pub x_m: &'a [Option<f64>],
     /// Time since the step's start (s): the anchors have moved with the belt by this much.
     pub since_s: f64,
+}
+
+/// What [`WalkerModel::step_start`] finds.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepStart {
+    /// What the ground does (N, m).
+    pub contact: ContactReading,
+    /// `(M^-1)_kk`, the knee's compliance with every other coordinate free (1/(kg m^2)).
+    pub knee_compliance: f64,
+    /// Momentum of the gait lab's shank and foot segments (kg m/s, x and z).
+    pub momentum: [f64; 2],
+    /// Their angular momentum about the world origin (kg m^2/s, about +y).
+    pub angular_momentum: f64,
+    /// Their weight's moment about the origin (N m, about +y).
+    pub weight_moment: f64,
+    /// Their mass (kg).
+    pub segment_mass_kg: f64,
+    /// The knee centre (m, world x and z).
+    pub knee_centre: P2,
 }
 
 /// The result of one evaluation.
@@ -293,7 +320,15 @@ impl WalkerModel {
     fn kinematics(&self, x: &[f64; NX], out: &mut [Kin; MAX_LINKS]) {
         let (g, gd) = (&x[..NG], &x[NG..]);
         let root = &mut out[self.spec.root];
-        *root = Kin { t: P2::new(g[PX], g[PZ]), a: -g[HIP], v: P2::new(gd[PX], gd[PZ]), w: -gd[HIP], ..Kin::default() };
+        let cs = (-g[HIP]).sin_cos();
+        *root = Kin {
+            t: P2::new(g[PX], g[PZ]),
+            a: -g[HIP],
+            cs: (cs.1, cs.0),
+            v: P2::new(gd[PX], gd[PZ]),
+            w: -gd[HIP],
+            ..Kin::default()
+        };
         root.jt[PX] = P2::new(1.0, 0.0);
         root.jt[PZ] = P2::new(0.0, 1.0);
         root.ja[HIP] = -1.0;
@@ -310,7 +345,7 @@ impl WalkerModel {
             };
             let p = out[j.parent];
             let mut c = p;
-            let o = j.origin.t.rot(p.a);
+            let o = p.rot(j.origin.t);
             if j.sign != 0.0 || j.coord == Coord::Zero {
                 let (_, v, jt, bt) = p.point(o);
                 c.t = p.t.plus(o);
@@ -322,7 +357,7 @@ impl WalkerModel {
                 c.bt = bt;
                 c.ba = p.ba + j.sign * qb;
             } else {
-                let e = j.slide.rot(p.a);
+                let e = p.rot(j.slide);
                 let u = o.plus(e.scale(q));
                 let (t, v, mut jt, bt) = p.point(u);
                 jt[grad.0] = jt[grad.0].plus(e.scale(grad.1));
@@ -332,40 +367,37 @@ impl WalkerModel {
                 c.jt = jt;
                 c.bt = bt.plus(perp(e).scale(2.0 * p.w * qd)).plus(e.scale(qb));
             }
+            if c.a != p.a {
+                let (sn, cn) = c.a.sin_cos();
+                c.cs = (cn, sn);
+            }
             out[j.child] = c;
         }
     }
 
-    /// Evaluate the dynamics at state `x` with `applied` forces and the friction `anchors`.
-    pub fn evaluate(&self, x: &[f64; NX], applied: &Applied, anchors: &Anchors) -> Evaluation {
-        let mut kin = [Kin::default(); MAX_LINKS];
-        self.kinematics(x, &mut kin);
+    /// The mass matrix at the link kinematics `kin`; with `q`, subtracts the gravity and
+    /// velocity-product forces from it.
+    fn mass_matrix(&self, kin: &[Kin; MAX_LINKS], mut q: Option<&mut [f64; NG]>) -> [[f64; NG]; NG] {
         let mut m = [[0.0; NG]; NG];
-        let mut q = applied.q;
         m[PX][PX] = self.pelvis_mass_kg;
         m[PZ][PZ] = self.pelvis_mass_kg;
-        q[PZ] -= self.pelvis_mass_kg * GRAVITY_M_S2;
+        if let Some(q) = q.as_deref_mut() {
+            q[PZ] -= self.pelvis_mass_kg * GRAVITY_M_S2;
+        }
         for (l, &(mass, com, iyy)) in self.links.iter().enumerate() {
             let k = &kin[l];
-            let (_, _, jc, bc) = k.point(com.rot(k.a));
+            let (_, _, jc, bc) = k.point(k.rot(com));
             for r in 0..NG {
                 for c in r..NG {
                     m[r][c] += mass * jc[r].dot(jc[c]) + iyy * k.ja[r] * k.ja[c];
                 }
-                q[r] -= mass * (jc[r].dot(bc) + GRAVITY_M_S2 * jc[r].z) + iyy * k.ja[r] * k.ba;
+            }
+            if let Some(q) = q.as_deref_mut() {
+                for r in 0..NG {
+                    q[r] -= mass * (jc[r].dot(bc) + GRAVITY_M_S2 * jc[r].z) + iyy * k.ja[r] * k.ba;
+                }
             }
         }
-        let contact = self.contact(&kin, anchors, &mut q);
-        if let Some((link, p, f)) = applied.point {
-            let k = &kin[link];
-            let (_, _, jp, _) = k.point(p.rot(k.a));
-            let f = f.rot(k.a);
-            (0..NG).for_each(|r| q[r] += jp[r].dot(f));
-        }
-        let lp = self.loop_at(x[KNEE]);
-        let [ck, cb, cr, ca] = self.damping;
-        q[KNEE] -= (ck + cb * lp[1] * lp[1] + cr * lp[4] * lp[4]) * x[NG + KNEE];
-        q[ANKLE] -= ca * x[NG + ANKLE];
         for r in 0..NG {
             for c in 0..r {
                 m[r][c] = m[c][r];
@@ -375,13 +407,54 @@ impl WalkerModel {
             for c in 0..NG {
                 (m[i][c], m[c][i]) = (0.0, 0.0);
             }
-            (m[i][i], q[i]) = (1.0, 0.0);
+            m[i][i] = 1.0;
         }
-        let l = cholesky(&m);
-        let accel = solve(&l, q);
+        m
+    }
+
+    /// `(M^-1)_kk` from the Cholesky factor `l`.
+    fn knee_compliance(l: &[[f64; NG]; NG]) -> f64 {
         let mut e = [0.0; NG];
         e[KNEE] = 1.0;
-        Evaluation { accel, contact, knee_compliance: solve(&l, e)[KNEE] }
+        solve(l, e)[KNEE]
+    }
+
+    /// Evaluate the dynamics at state `x` with `applied` forces and the friction `anchors`.
+    pub fn evaluate(&self, x: &[f64; NX], applied: &Applied, anchors: &Anchors) -> Evaluation {
+        let mut kin = [Kin::default(); MAX_LINKS];
+        self.kinematics(x, &mut kin);
+        let mut q = applied.q;
+        let m = self.mass_matrix(&kin, Some(&mut q));
+        let contact = self.contact(&kin, anchors, &mut q);
+        if let Some((link, p, f)) = applied.point {
+            let k = &kin[link];
+            let (_, _, jp, _) = k.point(k.rot(p));
+            let f = k.rot(f);
+            (0..NG).for_each(|r| q[r] += jp[r].dot(f));
+        }
+        let lp = self.loop_at(x[KNEE]);
+        let [ck, cb, cr, ca] = self.damping;
+        q[KNEE] -= (ck + cb * lp[1] * lp[1] + cr * lp[4] * lp[4]) * x[NG + KNEE];
+        q[ANKLE] -= ca * x[NG + ANKLE];
+        for i in (0..NG).filter(|&i| self.locked[i]) {
+            q[i] = 0.0;
+        }
+        let l = cholesky(&m);
+        Evaluation { accel: solve(&l, q), contact, knee_compliance: Self::knee_compliance(&l) }
+    }
+
+    /// Sphere `s` at `kin` if it touches: its depth (m), ground point (m) and the point's
+    /// velocity (m/s) and Jacobian.
+    fn sphere_at(&self, kin: &[Kin; MAX_LINKS], s: &Sphere) -> Option<(f64, P2, P2, [P2; NG])> {
+        let k = &kin[s.link];
+        let u = k.rot(s.center);
+        let depth = self.ground_z_m + s.radius_m - (k.t.z + u.z);
+        if depth <= 0.0 {
+            return None;
+        }
+        let point = P2::new(k.t.x + u.x, self.ground_z_m);
+        let (_, v, jp, _) = k.point(point.minus(k.t));
+        Some((depth, point, v, jp))
     }
 
     /// The contact forces at the link kinematics `kin`, added to `q`; what they add up to.
@@ -389,17 +462,11 @@ impl WalkerModel {
         let mut r = ContactReading::default();
         let mut sum = ReadingSum::default();
         let belt = self.belt_speed_m_s;
-        for (i, s) in self.spheres.iter().enumerate() {
-            let k = &kin[s.link];
-            let u = s.center.rot(k.a);
-            let depth = self.ground_z_m + s.radius_m - (k.t.z + u.z);
-            if depth <= 0.0 {
-                continue;
-            }
-            let point = P2::new(k.t.x + u.x, self.ground_z_m);
-            let (_, v, jp, _) = k.point(point.minus(k.t));
+        for (i, sphere) in self.spheres.iter().enumerate() {
+            let Some((depth, point, v, jp)) = self.sphere_at(kin, sphere) else { continue };
+            let radius = sphere.radius_m;
             let mut anchor = anchors.x_m.get(i).copied().flatten().map(|a| a - belt * anchors.since_s);
-            let (fx, fz) = sphere_force(&self.law, self.friction, s.radius_m, depth, point.x, [v.x, v.z], belt, &mut anchor);
+            let (fx, fz) = sphere_force(&self.law, self.friction, radius, depth, point.x, [v.x, v.z], belt, &mut anchor);
             let f = P2::new(fx, fz);
             (0..NG).for_each(|c| q[c] += jp[c].dot(f));
             sum.add(&mut r, [point.x, point.z], [fx, fz], depth);
@@ -408,46 +475,47 @@ impl WalkerModel {
         r
     }
 
-    /// The friction anchors at the start of a step at state `x` (the Rapier engine's rule): a
-    /// sphere off the ground has none, one that touches keeps its anchor or gets one where it
-    /// touches, one that slips has its anchor moved to where the spring carries `mu F_n`.
-    pub fn update_anchors(&self, x: &[f64; NX], anchors: &mut [Option<f64>]) {
+    /// The start of a step at state `x`, in one pass: the friction `anchors` updated by the
+    /// Rapier engine's rule (a sphere off the ground has none, one that touches keeps its
+    /// anchor or gets one where it touches, one that slips has its anchor moved to where the
+    /// spring carries `mu F_n`), what the ground does then, the knee's compliance, and the gait
+    /// lab's shank and foot segments.
+    pub fn step_start(&self, x: &[f64; NX], anchors: &mut [Option<f64>]) -> StepStart {
         let mut kin = [Kin::default(); MAX_LINKS];
         self.kinematics(x, &mut kin);
-        for (s, a) in self.spheres.iter().zip(anchors.iter_mut()) {
-            let k = &kin[s.link];
-            let u = s.center.rot(k.a);
-            let depth = self.ground_z_m + s.radius_m - (k.t.z + u.z);
-            if depth <= 0.0 {
-                *a = None;
-                continue;
+        for (sphere, anchor) in self.spheres.iter().zip(anchors.iter_mut()) {
+            match self.sphere_at(&kin, sphere) {
+                None => *anchor = None,
+                Some((depth, point, v, _)) => {
+                    let (r, belt) = (sphere.radius_m, self.belt_speed_m_s);
+                    sphere_force(&self.law, self.friction, r, depth, point.x, [v.x, v.z], belt, anchor);
+                }
             }
-            let point = P2::new(k.t.x + u.x, self.ground_z_m);
-            let (_, v, _, _) = k.point(point.minus(k.t));
-            sphere_force(&self.law, self.friction, s.radius_m, depth, point.x, [v.x, v.z], self.belt_speed_m_s, a);
         }
-    }
-
-    /// The momentum (kg m/s, x and z), angular momentum about the world origin (kg m^2/s,
-    /// about +y) and weight moment about the origin (N m, about +y) of the gait lab's shank
-    /// and foot segments, their mass (kg), and the knee centre (m), at state `x`.
-    pub fn segment_momenta(&self, x: &[f64; NX]) -> ([f64; 2], f64, f64, f64, P2) {
-        let mut kin = [Kin::default(); MAX_LINKS];
-        self.kinematics(x, &mut kin);
-        let (mut p, mut h, mut wm, mut mass) = (P2::default(), 0.0, 0.0, 0.0);
-        for &l in &self.segments {
-            let (m, com, iyy) = self.links[l];
-            let k = &kin[l];
-            let (c, v, _, _) = k.point(com.rot(k.a));
+        let contact = self.contact(&kin, &Anchors { x_m: anchors, since_s: 0.0 }, &mut [0.0; NG]);
+        let l = cholesky(&self.mass_matrix(&kin, None));
+        let (mut p, mut h, mut weight_moment, mut mass) = (P2::default(), 0.0, 0.0, 0.0);
+        for &li in &self.segments {
+            let (m, com, iyy) = self.links[li];
+            let k = &kin[li];
+            let (c, v, _, _) = k.point(k.rot(com));
             p = p.plus(v.scale(m));
             // (c x m v).y = m (c.z v.x - c.x v.z); the link's spin w is about +y.
             h += m * (c.z * v.x - c.x * v.z) + iyy * k.w;
-            wm += -m * GRAVITY_M_S2 * -c.x;
+            weight_moment += m * GRAVITY_M_S2 * c.x;
             mass += m;
         }
         let knee = self.spec.knee_joint();
-        let kc = kin[knee.parent].t.plus(super::model::joint_origin(knee).t.rot(kin[knee.parent].a));
-        ([p.x, p.z], h, wm, mass, kc)
+        let knee_centre = kin[knee.parent].t.plus(kin[knee.parent].rot(super::model::joint_origin(knee).t));
+        StepStart {
+            contact,
+            knee_compliance: Self::knee_compliance(&l),
+            momentum: [p.x, p.z],
+            angular_momentum: h,
+            weight_moment,
+            segment_mass_kg: mass,
+            knee_centre,
+        }
     }
 
     /// Total energy (J): kinetic of every link and the pelvis, potential in gravity (from
@@ -459,7 +527,7 @@ impl WalkerModel {
         let mut e = 0.5 * self.pelvis_mass_kg * (vp.0 * vp.0 + vp.1 * vp.1) + self.pelvis_mass_kg * GRAVITY_M_S2 * x[PZ];
         for (l, &(m, com, iyy)) in self.links.iter().enumerate() {
             let k = &kin[l];
-            let (c, v, _, _) = k.point(com.rot(k.a));
+            let (c, v, _, _) = k.point(k.rot(com));
             e += 0.5 * m * v.dot(v) + 0.5 * iyy * k.w * k.w + m * GRAVITY_M_S2 * c.z;
         }
         e

@@ -13,23 +13,10 @@ use crate::error::{Error, Result};
 use crate::human::{BodyForces, BodyState};
 use crate::integrator::Integrator;
 use crate::leg::planar::P2;
-use crate::leg::walker::{Anchors, Applied, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES};
+use crate::leg::walker::{Anchors, Applied, StepStart, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES};
 use crate::leg::geometry::cylinder_kinematics_at;
-use crate::leg::ContactReading;
 use crate::record::{ContactRow, LegRow};
 use std::sync::Arc;
-
-/// What the plant knows at the start of a step besides the state.
-#[derive(Debug, Clone, Copy, Default)]
-struct StepStart {
-    /// What the ground does now.
-    contact: ContactReading,
-    /// `(M^-1)_kk` now (1/(kg m^2)).
-    knee_compliance: f64,
-    /// Momentum (x, z), angular momentum and weight moment about the origin of the shank and
-    /// foot segments, their mass.
-    momenta: ([f64; 2], f64, f64, f64),
-}
 
 /// The reduced engine's walking leg.
 pub struct WalkerPlant {
@@ -97,10 +84,8 @@ impl WalkerPlant {
     /// knee's compliance, the segments' momenta and the end stops' torques over the step.
     fn start_step(&mut self) {
         let m = &self.model;
-        m.update_anchors(&self.x, &mut self.anchors);
-        let e = m.evaluate(&self.x, &Applied::default(), &Anchors { x_m: &self.anchors, since_s: 0.0 });
-        let (p, h, wm, mass, _) = m.segment_momenta(&self.x);
-        self.now = StepStart { contact: e.contact, knee_compliance: e.knee_compliance, momenta: (p, h, wm, mass) };
+        self.now = m.step_start(&self.x, &mut self.anchors);
+        let e = self.now;
         let (q, qd) = (self.x[KNEE], self.x[NG + KNEE]);
         // The knee's inertia with every other coordinate free: the smallest it has (a stop
         // computed for it does not overshoot).
@@ -164,18 +149,18 @@ impl WalkerPlant {
     /// engine's `Leg::lab_knee_moment_nm`, whose contact force is constant over a step).
     fn lab_knee_moment(&self, before: &StepStart) -> f64 {
         let dt = self.dt_s;
-        let (p0, h0, _, _) = before.momenta;
-        let (p1, h1, wm, mass) = self.now.momenta;
-        let (a, b) = (&before.contact, &self.now.contact);
+        let now = &self.now;
+        let (p0, p1) = (before.momentum, now.momentum);
+        let (a, b) = (&before.contact, &now.contact);
         let grf = [0.5 * (a.horizontal_n + b.horizontal_n), 0.5 * (a.vertical_n + b.vertical_n)];
         let grf_moment = 0.5 * (a.moment_origin_y_nm + b.moment_origin_y_nm);
         let g = crate::leg::model::GRAVITY_M_S2;
         // Force the thigh side applies at the knee: R = dP/dt - m g - GRF.
-        let r = [(p1[0] - p0[0]) / dt - grf[0], (p1[1] - p0[1]) / dt + g * mass - grf[1]];
-        let kc = self.model.segment_momenta(&self.x).4;
+        let r = [(p1[0] - p0[0]) / dt - grf[0], (p1[1] - p0[1]) / dt + g * now.segment_mass_kg - grf[1]];
+        let kc = now.knee_centre;
         // Moment about the origin (about +y): M_k + (K x R).y + weight + ground = dH/dt.
         let k_cross_r = kc.z * r[0] - kc.x * r[1];
-        let mk = (h1 - h0) / dt - k_cross_r - wm - grf_moment;
+        let mk = (now.angular_momentum - before.angular_momentum) / dt - k_cross_r - now.weight_moment - grf_moment;
         // Flexion is a rotation about +y: an extensor moment is -y.
         -mk
     }
