@@ -8,7 +8,9 @@
 //! hydraulics or recording.
 //!
 //! `treadmill_*`: `gait_treadmill.toml` (0.25 ms steps, 1.1 s: one stride) with the compliant
-//! sole (the default) and with Rapier's rigid contacts. `*_csv`: the same run as its `_memory`
+//! sole (the default) and with Rapier's rigid contacts; `treadmill_reduced` the same stride on
+//! the reduced engine at 0.5 ms (the step its accuracy allows, README "Speed"), and at 0.25 ms.
+//! Compare per simulated second: a 0.5 ms step covers twice the time of a 0.25 ms one. `*_csv`: the same run as its `_memory`
 //! twin writing `timeseries.csv` (to a temporary folder, flushed and synced as the CLI does)
 //! instead of keeping the rows in memory: the output path's cost (10 s runs, 10,000 rows).
 
@@ -33,6 +35,8 @@ fn steps(c: &mut Criterion) {
     for (name, sets) in [
         ("treadmill_compliant", &["sim.duration_s=1.1"][..]),
         ("treadmill_rigid", &["sim.duration_s=1.1", "ground.contact=\"rigid\""][..]),
+        ("treadmill_reduced", &["sim.duration_s=1.1", "leg.engine=\"reduced\"", "sim.dt_s=0.0005"][..]),
+        ("treadmill_reduced_250us", &["sim.duration_s=1.1", "leg.engine=\"reduced\""][..]),
     ] {
         let s =
             exoleg::load(Some(&treadmill), &sets.iter().chain(&["metrics.settle_s=0.5"]).copied().collect::<Vec<_>>())

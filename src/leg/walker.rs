@@ -88,6 +88,8 @@ struct TreeJoint {
     parent: usize,
     child: usize,
     origin: Pose2,
+    /// cos and sin of the origin's pitch.
+    origin_cs: (f64, f64),
     /// Hinge: +1 / -1 (the axis's y sign); slider: 0.
     sign: f64,
     /// Slider direction in the parent frame after the origin's rotation.
@@ -155,6 +157,8 @@ pub struct WalkerModel {
     /// Per grid point: beta, beta', beta'', s, s', s''.
     table: Vec<[f64; 6]>,
     pelvis_mass_kg: f64,
+    /// The pelvis's and every link's mass (kg).
+    total_mass_kg: f64,
     /// Damping of the knee, barrel hinge, rod slide and ankle (N m s/rad, N s/m).
     damping: [f64; 4],
     locked: [bool; NG],
@@ -212,8 +216,6 @@ pub struct Evaluation {
     pub accel: [f64; NG],
     /// What the ground did.
     pub contact: ContactReading,
-    /// `(M^-1)_kk`, the knee's compliance with every other coordinate free (1/(kg m^2)).
-    pub knee_compliance: f64,
 }
 
 impl WalkerModel {
@@ -277,6 +279,7 @@ impl WalkerModel {
             step,
             table,
             pelvis_mass_kg,
+            total_mass_kg: pelvis_mass_kg + spec.links.iter().map(|l| l.mass_kg).sum::<f64>(),
             damping,
             locked,
             spheres,
@@ -367,33 +370,46 @@ impl WalkerModel {
                 c.jt = jt;
                 c.bt = bt.plus(perp(e).scale(2.0 * p.w * qd)).plus(e.scale(qb));
             }
-            if c.a != p.a {
-                let (sn, cn) = c.a.sin_cos();
-                c.cs = (cn, sn);
-            }
+            // cos and sin of the child's angle by angle addition: the parent's, the origin's
+            // pitch, and the hinge's turn.
+            let turn = if j.sign != 0.0 { j.origin.a + j.sign * q } else { j.origin.a };
+            let (c2, s2) = if j.sign != 0.0 {
+                let (sn, cn) = turn.sin_cos();
+                (cn, sn)
+            } else {
+                j.origin_cs
+            };
+            let (c1, s1) = p.cs;
+            c.cs = (c1 * c2 - s1 * s2, s1 * c2 + c1 * s2);
             out[j.child] = c;
         }
     }
 
     /// The mass matrix at the link kinematics `kin`; with `q`, subtracts the gravity and
-    /// velocity-product forces from it.
+    /// velocity-product forces from it. Every link's Jacobian has the unit pelvis columns
+    /// (`J_c[x_p] = (1, 0)`, `J_c[z_p] = (0, 1)`, no rotation), so those rows are sums of the
+    /// links' masses and first moments.
     fn mass_matrix(&self, kin: &[Kin; MAX_LINKS], mut q: Option<&mut [f64; NG]>) -> [[f64; NG]; NG] {
         let mut m = [[0.0; NG]; NG];
-        m[PX][PX] = self.pelvis_mass_kg;
-        m[PZ][PZ] = self.pelvis_mass_kg;
+        m[PX][PX] = self.total_mass_kg;
+        m[PZ][PZ] = self.total_mass_kg;
         if let Some(q) = q.as_deref_mut() {
-            q[PZ] -= self.pelvis_mass_kg * GRAVITY_M_S2;
+            q[PZ] -= self.total_mass_kg * GRAVITY_M_S2;
         }
         for (l, &(mass, com, iyy)) in self.links.iter().enumerate() {
             let k = &kin[l];
             let (_, _, jc, bc) = k.point(k.rot(com));
-            for r in 0..NG {
-                for c in r..NG {
+            for c in HIP..NG {
+                m[PX][c] += mass * jc[c].x;
+                m[PZ][c] += mass * jc[c].z;
+                for r in HIP..=c {
                     m[r][c] += mass * jc[r].dot(jc[c]) + iyy * k.ja[r] * k.ja[c];
                 }
             }
             if let Some(q) = q.as_deref_mut() {
-                for r in 0..NG {
+                q[PX] -= mass * bc.x;
+                q[PZ] -= mass * bc.z;
+                for r in HIP..NG {
                     q[r] -= mass * (jc[r].dot(bc) + GRAVITY_M_S2 * jc[r].z) + iyy * k.ja[r] * k.ba;
                 }
             }
@@ -439,8 +455,7 @@ impl WalkerModel {
         for i in (0..NG).filter(|&i| self.locked[i]) {
             q[i] = 0.0;
         }
-        let l = cholesky(&m);
-        Evaluation { accel: solve(&l, q), contact, knee_compliance: Self::knee_compliance(&l) }
+        Evaluation { accel: solve(&cholesky(&m), q), contact }
     }
 
     /// Sphere `s` at `kin` if it touches: its depth (m), ground point (m) and the point's
@@ -572,7 +587,8 @@ fn tree_joints(spec: &LegSpec) -> Result<Vec<TreeJoint>, LegError> {
             JointKind::Fixed => (0.0, P2::default()),
             _ => (j.axis[1].signum(), P2::default()),
         };
-        out.push(TreeJoint { parent: j.parent, child: j.child, origin, sign, slide, coord });
+        let (sn, cn) = origin.a.sin_cos();
+        out.push(TreeJoint { parent: j.parent, child: j.child, origin, origin_cs: (cn, sn), sign, slide, coord });
     }
     Ok(out)
 }

@@ -100,11 +100,10 @@ impl WalkerPlant {
         self.stop_nm = (knee, ankle);
     }
 
-    /// What the plant applies at state `x` besides gravity, damping and contact: the body's
-    /// forces `body`, the stops, the net cylinder force `force_n` (N) and the cuff force
-    /// `cuff_force_n` (N, as [`PlantInputs::cuff_force_n`]).
-    fn applied(&self, x: &[f64; NX], body: &BodyForces, force_n: f64, cuff_force_n: f64) -> Applied {
-        let arm = cylinder_kinematics_at(self.model.spec(), x[KNEE]).1;
+    /// What the plant applies besides gravity, damping and contact: the body's forces `body`,
+    /// the stops, the net cylinder force `force_n` (N) on the moment arm `arm` (m/rad) and the
+    /// cuff force `cuff_force_n` (N, as [`PlantInputs::cuff_force_n`]).
+    fn applied(&self, arm: f64, body: &BodyForces, force_n: f64, cuff_force_n: f64) -> Applied {
         let mut q = [0.0; NG];
         q[PX] = body.pelvis_force_n[0];
         q[PZ] = body.pelvis_force_n[1];
@@ -182,7 +181,7 @@ impl CoupledMechanics for WalkerPlant {
         let (l, arm, slope) = cylinder_kinematics_at(self.model.spec(), k);
         let v = arm * kd;
         let body = inputs.body.unwrap_or_default();
-        let applied = self.applied(&s, &body, (inputs.net_force_n)(v), inputs.cuff_force_n);
+        let applied = self.applied(arm, &body, (inputs.net_force_n)(v), inputs.cuff_force_n);
         let qdd = self.rates(t_s, &s, &applied, dx);
         CoupledStage {
             piston: PistonMotion {
@@ -242,7 +241,8 @@ impl Plant for WalkerPlant {
                 let body = self.body;
                 let f = |t: f64, x: &[f64; NX]| {
                     let mut dx = [0.0; NX];
-                    self.rates(t, x, &self.applied(x, &body, force, inputs.cuff_force_n), &mut dx);
+                    let arm = cylinder_kinematics_at(self.model.spec(), x[KNEE]).1;
+                    self.rates(t, x, &self.applied(arm, &body, force, inputs.cuff_force_n), &mut dx);
                     dx
                 };
                 Integrator::Rk4.step(t_s, dt_s, &self.x, f)

@@ -22,7 +22,7 @@
 use super::{FourierSeries, GaitReference, RefSample, WalkingData};
 use crate::error::{Error, Result};
 use crate::hydraulics::FrictionParams;
-use crate::leg::{knee_inverse_dynamics, moment_arm_at, moment_arm_curvature_at, moment_arm_slope_at, LegSpec};
+use crate::leg::{knee_inverse_dynamics, moment_arm_at, moment_arm_curvature_at, LegSpec};
 use std::sync::Arc;
 
 /// Harmonics of the Fourier fit of the inverse-dynamics force over one stride.
@@ -112,7 +112,10 @@ impl KneeForceReference {
     pub fn friction_at(&self, t_s: f64) -> RefSample {
         let (q, qd, qdd, qddd) = self.gait.knee_jerk_at(t_s);
         let m = &self.model;
-        let (l1, l2, l3) = (moment_arm_at(m, q), moment_arm_slope_at(m, q), moment_arm_curvature_at(m, q));
+        // One evaluation of the cylinder's triangle for L' and L'' (the same values the
+        // single-purpose functions give).
+        let (_, l1, l2) = crate::leg::geometry::cylinder_kinematics_at(m, q);
+        let l3 = moment_arm_curvature_at(m, q);
         let v = l1 * qd;
         let v1 = l2 * qd * qd + l1 * qdd;
         let v2 = l3 * qd * qd * qd + 3.0 * l2 * qd * qdd + l1 * qddd;

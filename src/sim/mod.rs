@@ -57,7 +57,7 @@ use crate::plant::PlantSetup;
 use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs, ReducedLegPlant, WalkerPlant};
 use crate::record::{Layout, RecordSink, Row};
 use crate::sensors::{SampledSensors, ZeroOrderHold};
-use stage::{Dynamics, Extra, ExtraMut};
+use stage::{Dynamics, Extra, ExtraMut, MAX_MECH};
 use std::sync::Arc;
 
 /// Spool travel (m) past which a run is declared unstable.
@@ -130,6 +130,8 @@ pub struct Simulation {
     /// and its names.
     mech_state: Vec<f64>,
     mech_names: &'static [&'static str],
+    /// The desired forces this step has evaluated.
+    ref_memo: std::cell::RefCell<stage::RefMemo>,
     /// The integrator's packed vector and scratch, allocated once.
     packed: Vec<f64>,
     first: Vec<f64>,
@@ -211,6 +213,9 @@ impl Simulation {
             (ActuatorMode::Hydraulic, Some(c)) => c.state_names(),
             _ => &[],
         };
+        if mech_names.len() > MAX_MECH {
+            return Err(Error::Usage(format!("coupled mechanics of {} states: at most {MAX_MECH}", mech_names.len())));
+        }
         let n = PLANT_LEN + mech_names.len() + controller_names.len();
         let state = State { hyd: sc.cylinder.initial_state(), ..Default::default() };
         let output = matches!(control, ControlBlock::Sampled(_)).then(ControlOutput::default);
@@ -219,6 +224,7 @@ impl Simulation {
             controller_state: vec![0.0; controller_names.len()],
             mech_state: vec![0.0; mech_names.len()],
             mech_names,
+            ref_memo: Default::default(),
             packed: vec![0.0; n],
             first: vec![0.0; n],
             work: vec![0.0; crate::integrator::SCRATCH_VECTORS * n],
@@ -310,7 +316,7 @@ impl Simulation {
             ControlBlock::Continuous(c) => Some(c.as_ref()),
             ControlBlock::Sampled(_) => None,
         };
-        Dynamics { sc: &self.sc, controller: continuous }
+        Dynamics { sc: &self.sc, controller: continuous, memo: &self.ref_memo }
     }
 
     fn hydraulic(&self) -> bool {
@@ -339,11 +345,14 @@ impl Simulation {
             e.update(t, c.ground_reaction_vertical_n);
         }
         self.held.body = self.body_forces(t);
+        // The stance weight may have changed with the events (and step 0's start on the
+        // trajectory asked before they were read).
+        self.ref_memo.borrow_mut().clear();
     }
 
     /// A derivative slot for the mechanics' state in `buf` (evaluations whose derivatives are
     /// not kept).
-    fn mech_scratch<'a>(&self, buf: &'a mut [f64; 16]) -> ExtraMut<'a> {
+    fn mech_scratch<'a>(&self, buf: &'a mut [f64; MAX_MECH]) -> ExtraMut<'a> {
         ExtraMut { mech: &mut buf[..self.mech_state.len()], ctrl: &mut [] }
     }
 
@@ -378,8 +387,8 @@ impl Simulation {
         self.begin();
         let t = self.t_s();
         let period = self.sc.sample_period_s;
-        let d = Dynamics { sc: &self.sc, controller: None };
-        let mut dmech = [0.0; 16];
+        let d = Dynamics { sc: &self.sc, controller: None, memo: &self.ref_memo };
+        let mut dmech = [0.0; MAX_MECH];
         let (x, dx) = (Extra { mech: &self.mech_state, ctrl: &[] }, self.mech_scratch(&mut dmech));
         let s0 = d.evaluate(t, &self.state, x, dx, self.plant.as_ref(), &self.held);
         let truth = d.truth(&self.state, &self.mech_state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held);
@@ -397,7 +406,7 @@ impl Simulation {
             }
             _ => y.knee_rate_rad_s,
         };
-        let d = Dynamics { sc: &self.sc, controller: None };
+        let d = Dynamics { sc: &self.sc, controller: None, memo: &self.ref_memo };
         self.held.knee_integral_rad_s = d.pd_integral(t_reading, self.held.knee_integral_rad_s, y.knee_rad, period);
         self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, knee_rate, self.held.knee_integral_rad_s);
         let r = d.reference_at(t, &self.held);
@@ -492,7 +501,7 @@ impl Simulation {
         if self.k == 0 {
             let init = Held { output: Some(ControlOutput::default()), ..self.held };
             let d = self.dynamics();
-            let mut dmech = [0.0; 16];
+            let mut dmech = [0.0; MAX_MECH];
             let (x, dx) = (Extra { mech: &self.mech_state, ctrl: &[] }, self.mech_scratch(&mut dmech));
             let s0 = d.evaluate(0.0, &self.state, x, dx, self.plant.as_ref(), &init);
             let mech = &self.mech_state;
@@ -577,6 +586,8 @@ impl Simulation {
             mech_end: (!self.mech_state.is_empty() && self.held.predictor.is_some()).then_some(&self.mech_state[..]),
         };
         let stroke = self.plant.advance(t, &inputs)?;
+        // The plant's held forces changed with its step.
+        self.ref_memo.borrow_mut().clear();
         let missed = self.hydraulic().then(|| {
             let seen = match &self.held.predictor {
                 Some(_) => self.state.piston.position_m - start.piston.position_m,

@@ -57,16 +57,63 @@ pub(super) struct Stage {
     pub force_limited: bool,
 }
 
+/// The desired forces a step has evaluated, by time and outer-loop force: a gait reference
+/// costs two Fourier series and the friction feedforward per evaluation, and a step asks for
+/// the same instants several times (its record, its stages, the sample, the interaction).
+/// Cleared at every step's start (the stance weight may change there).
+/// With coupled mechanics also the last mechanics stage: a sampled step evaluates its start
+/// for the sensors and again for its record, with the same state.
+#[derive(Debug, Default)]
+pub(super) struct RefMemo {
+    entries: [(u64, u64, RefSample); 8],
+    len: usize,
+    next: usize,
+    stage: Option<MechMemo>,
+}
+
+/// One coupled-mechanics stage: its time, load force and cuff force (bits), state, derivative
+/// and result.
+#[derive(Debug, Clone, Copy)]
+struct MechMemo {
+    key: (u64, u64, u64),
+    x: [f64; MAX_MECH],
+    dx: [f64; MAX_MECH],
+    out: CoupledStage,
+}
+
+/// Longest mechanical state the memo keeps.
+pub(super) const MAX_MECH: usize = 16;
+
+impl RefMemo {
+    /// Forget every entry.
+    pub fn clear(&mut self) {
+        self.len = 0;
+        self.next = 0;
+        self.stage = None;
+    }
+}
+
 /// The immutable model of a run plus the continuous controller (if any): what a stage needs.
 pub(super) struct Dynamics<'a> {
     pub sc: &'a Model,
     pub controller: Option<&'a dyn Controller>,
+    pub memo: &'a std::cell::RefCell<RefMemo>,
 }
 
 impl Dynamics<'_> {
     /// Desired force at `t` with the held outer-loop force.
     pub fn reference_at(&self, t: f64, held: &Held) -> RefSample {
-        self.sc.reference.force_at(t, held.pd_force_n, held.events.map(|e| e.stance_weight(t)))
+        let key = (t.to_bits(), held.pd_force_n.to_bits());
+        let mut memo = self.memo.borrow_mut();
+        if let Some(e) = memo.entries[..memo.len].iter().find(|e| (e.0, e.1) == key) {
+            return e.2;
+        }
+        let r = self.sc.reference.force_at(t, held.pd_force_n, held.events.map(|e| e.stance_weight(t)));
+        let i = memo.next;
+        memo.entries[i] = (key.0, key.1, r);
+        memo.next = (i + 1) % memo.entries.len();
+        memo.len = (memo.len + 1).min(memo.entries.len());
+        r
     }
 
     /// The gait cascade's outer-loop force for a knee reading at `t` (0 without a cascade).
@@ -91,7 +138,7 @@ impl Dynamics<'_> {
         match (held.predictor.as_ref(), plant.coupled()) {
             (None, _) => plant.piston_at(t),
             (Some(_), Some(c)) => {
-                let mut scratch = [0.0; 16];
+                let mut scratch = [0.0; MAX_MECH];
                 self.coupled(t, s, mech, &mut scratch[..mech.len()], c, held).piston
             }
             (Some(p), None) => Self::predicted(s, p, self.sc.friction.force_n(s.piston.velocity_m_s)),
@@ -109,9 +156,22 @@ impl Dynamics<'_> {
         c: &dyn CoupledMechanics,
         held: &Held,
     ) -> CoupledStage {
+        let key = (t.to_bits(), s.hyd.force_n.to_bits(), held.cuff_force_n.to_bits());
+        let n = mech.len();
+        if let Some(m) = self.memo.borrow().stage.filter(|m| m.key == key && m.x[..n] == *mech) {
+            dmech.copy_from_slice(&m.dx[..n]);
+            return m.out;
+        }
         let net_force = |v: f64| s.hyd.force_n - self.sc.friction.force_n(v);
         let inputs = StageInputs { net_force_n: &net_force, cuff_force_n: held.cuff_force_n, body: held.body };
-        c.stage(t, mech, &inputs, dmech)
+        let out = c.stage(t, mech, &inputs, dmech);
+        if n <= MAX_MECH {
+            let mut m = MechMemo { key, x: [0.0; MAX_MECH], dx: [0.0; MAX_MECH], out };
+            m.x[..n].copy_from_slice(mech);
+            m.dx[..n].copy_from_slice(dmech);
+            self.memo.borrow_mut().stage = Some(m);
+        }
+        out
     }
 
     /// The predictor's piston motion at state `s` with the friction `friction_n` (N) at its
