@@ -37,6 +37,7 @@ fn steps(c: &mut Criterion) {
         ("treadmill_rigid", &["sim.duration_s=1.1", "ground.contact=\"rigid\""][..]),
         ("treadmill_reduced", &["sim.duration_s=1.1", "leg.engine=\"reduced\"", "sim.dt_s=0.0005"][..]),
         ("treadmill_reduced_250us", &["sim.duration_s=1.1", "leg.engine=\"reduced\""][..]),
+        ("treadmill_reduced_1ms", &["sim.duration_s=1.1", "leg.engine=\"reduced\"", "sim.dt_s=0.001"][..]),
     ] {
         let s =
             exoleg::load(Some(&treadmill), &sets.iter().chain(&["metrics.settle_s=0.5"]).copied().collect::<Vec<_>>())

@@ -314,6 +314,18 @@ pub(crate) fn sphere_force(
     (fx, fz)
 }
 
+/// The compliant law's local stiffness at one sphere pressed `depth_m` (m) into the ground with
+/// the penetration rate `depth_rate_m_s` (m/s): the normal spring's slope (N/m) and damping
+/// (N s/m), the friction spring's stiffness (N/m) and damping (N s/m). For the integrators'
+/// step limits.
+pub(crate) fn sphere_stiffness(law: &CompliantContact, radius_m: f64, depth_m: f64, depth_rate_m_s: f64) -> [f64; 4] {
+    let k = HERTZ * law.modulus_pa * radius_m.sqrt();
+    let x = depth_m.max(0.0);
+    let c = law.dissipation_s_per_m;
+    let kt = law.friction_stiffness_n_per_m;
+    [1.5 * k * x.sqrt() * (1.0 + 1.5 * c * depth_rate_m_s).max(0.0), 1.5 * c * k * x * x.sqrt(), kt, 2.0 * (kt * FRICTION_MASS_KG).sqrt()]
+}
+
 /// Running sums of a [`ContactReading`] over contact points.
 #[derive(Default)]
 pub(crate) struct ReadingSum {

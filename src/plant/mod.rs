@@ -196,6 +196,12 @@ pub trait CoupledMechanics {
     /// The piston and the knee at time `t_s` and mechanical state `x`, with the state's time
     /// derivative written to `dx`.
     fn stage(&self, t_s: f64, x: &[f64], inputs: &StageInputs, dx: &mut [f64]) -> CoupledStage;
+    /// How stiff the mechanics are over the coming step: the fastest decay rate (1/s) and
+    /// oscillation (rad/s) of their forces (contact springs and dampers), which the loop's
+    /// substeps must resolve as they do the hydraulics'. Default none.
+    fn stiffness(&self) -> (f64, f64) {
+        (0.0, 0.0)
+    }
 }
 
 /// One evaluation of [`CoupledMechanics`].

@@ -174,6 +174,10 @@ impl CoupledMechanics for WalkerPlant {
         x.copy_from_slice(&self.x);
     }
 
+    fn stiffness(&self) -> (f64, f64) {
+        self.now.stiffness
+    }
+
     fn stage(&self, t_s: f64, x: &[f64], inputs: &StageInputs, dx: &mut [f64]) -> CoupledStage {
         let mut s = [0.0; NX];
         s.copy_from_slice(&x[..NX]);

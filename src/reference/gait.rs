@@ -85,6 +85,30 @@ impl FourierSeries {
         (v, d1, d2)
     }
 
+    /// [`Self::eval`] of this series and of `other` at `x`, in one pass when they share their
+    /// frequency and number of harmonics (the same sines and cosines; each sum adds in the same
+    /// order as [`Self::eval`], so the values are the same bits).
+    pub fn eval_pair(&self, other: &FourierSeries, x: f64) -> ((f64, f64, f64), (f64, f64, f64)) {
+        if self.w != other.w || self.a.len() != other.a.len() {
+            return (self.eval(x), other.eval(x));
+        }
+        let (mut v, mut d1, mut d2) = (self.c0, 0.0, 0.0);
+        let (mut u, mut e1, mut e2) = (other.c0, 0.0, 0.0);
+        let (s1, c1) = (self.w * x).sin_cos();
+        let (mut s, mut c) = (s1, c1);
+        for (k, ((a, b), (oa, ob))) in self.a.iter().zip(&self.b).zip(other.a.iter().zip(&other.b)).enumerate() {
+            let kw = (k + 1) as f64 * self.w;
+            v += a * c + b * s;
+            d1 += kw * (b * c - a * s);
+            d2 -= kw * kw * (a * c + b * s);
+            u += oa * c + ob * s;
+            e1 += kw * (ob * c - oa * s);
+            e2 -= kw * kw * (oa * c + ob * s);
+            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
+        }
+        ((v, d1, d2), (u, e1, e2))
+    }
+
     /// Value and first, second and third derivatives at `x`.
     pub fn eval3(&self, x: f64) -> (f64, f64, f64, f64) {
         let (mut v, mut d1, mut d2, mut d3) = (self.c0, 0.0, 0.0, 0.0);

@@ -132,9 +132,12 @@ impl KneeForceReference {
     /// on the carriage with the stance weight `w` (and its rates):
     /// `F_ff = (1 - w) F_id + w F_assist + F_f`.
     pub fn feedforward_at(&self, t_s: f64, stance_weight: Option<RefSample>) -> RefSample {
-        let (mut value, mut rate, mut accel) = self.id_fit.eval(t_s);
-        if let (Some(w), Some(_)) = (stance_weight, &self.stance) {
-            let b = self.assist_fit.as_ref().map_or((0.0, 0.0, 0.0), |f| f.eval(t_s));
+        let weighted = stance_weight.filter(|_| self.stance.is_some());
+        let ((mut value, mut rate, mut accel), b) = match (weighted, &self.assist_fit) {
+            (Some(_), Some(f)) => self.id_fit.eval_pair(f, t_s),
+            _ => (self.id_fit.eval(t_s), (0.0, 0.0, 0.0)),
+        };
+        if let Some(w) = weighted {
             let (d0, d1, d2) = (b.0 - value, b.1 - rate, b.2 - accel);
             accel += w.value * d2 + 2.0 * w.rate * d1 + w.accel * d0;
             rate += w.value * d1 + w.rate * d0;

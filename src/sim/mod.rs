@@ -66,6 +66,10 @@ const MAX_PLAUSIBLE_SPOOL_M: f64 = 1.0;
 pub const MAX_SUBSTEPS: usize = 1000;
 /// Fraction of the integrator's stability limit a substep may use.
 const STABILITY_MARGIN: f64 = 0.5;
+/// The same for the leg's contact (reduced engine): its fastest mode is the sole's damper on
+/// the foot, heavily damped, whose integration stays damped up to near the limit (ode3 at 0.8
+/// of it: amplification -0.33 per step); the contact then substeps only where it must.
+const CONTACT_MARGIN: f64 = 0.8;
 
 /// What is held over one step: the leg's piston predictor, the outer loop of the knee cascade
 /// (its force and its integral), the cuff force, and (sampled mode) the controller output.
@@ -660,10 +664,12 @@ impl Simulation {
         Ok(())
     }
 
-    /// Substeps the hydraulic states need over this step: the local stiffness (force-channel or
+    /// Substeps the integrated states need over this step: the local stiffness (force-channel or
     /// chamber-pressure rate, spool, piston friction over the effective mass, oil column) must
-    /// stay within half the integrator's stability limit. More than [`MAX_SUBSTEPS`] stops the
-    /// run with [`Error::Stiff`] naming the state and the step it needs.
+    /// stay within half the integrator's stability limit, the reduced engine's contact
+    /// ([`crate::plant::CoupledMechanics::stiffness`]) within [`CONTACT_MARGIN`] of it. More
+    /// than [`MAX_SUBSTEPS`] stops the run with [`Error::Stiff`] naming the state and the step
+    /// it needs.
     fn substeps(&mut self, t: f64, force_rate_n_per_s: f64) -> Result<usize> {
         let dt = self.sc.dt_s;
         let xc = match &self.held.predictor {
@@ -671,33 +677,46 @@ impl Simulation {
             None => self.plant.piston_at(t).position_m,
         };
         let (rate, k_oil) = self.sc.cylinder.local_stiffness(&self.state.hyd, xc);
-        let (mut real, mut real_state, mut omega) = (rate, "hydraulic pressure / load force", 0.0);
+        // Each stiffness with the fraction of the stability limit it may use: the leg's contact
+        // dampers and springs, whose modes are damped, use more of it than the hydraulics.
+        let mut real = (rate, "hydraulic pressure / load force", STABILITY_MARGIN);
+        let mut imag = (0.0, "oil column (piston)", STABILITY_MARGIN);
         if let Some(p) = &self.held.predictor {
             let fric = self.sc.friction.slope_n_s_per_m(self.state.piston.velocity_m_s) / p.effective_mass_kg;
-            if fric > real {
-                (real, real_state) = (fric, "piston velocity (seal friction)");
+            if fric > real.0 {
+                real = (fric, "piston velocity (seal friction)", STABILITY_MARGIN);
             }
-            omega = (k_oil / p.effective_mass_kg).sqrt();
+            imag.0 = (k_oil / p.effective_mass_kg).sqrt();
+        }
+        let (lim_re, lim_im) = self.sc.integrator.stability_limits();
+        let n_of = |(rate, _, margin): (f64, &str, f64), lim: f64| if lim > 0.0 { rate * dt / (margin * lim) } else { 0.0 };
+        if let (Some(c), false) = (self.plant.coupled(), self.mech_state.is_empty()) {
+            let (rate, w) = c.stiffness();
+            let (contact_re, contact_im) = ((rate, "leg contact (sole dampers)", CONTACT_MARGIN), (w, "leg contact (sole springs)", CONTACT_MARGIN));
+            if n_of(contact_re, lim_re) > n_of(real, lim_re) {
+                real = contact_re;
+            }
+            if n_of(contact_im, lim_im) > n_of(imag, lim_im) {
+                imag = contact_im;
+            }
         }
         if let (ControlBlock::Continuous(c), true) = (&self.control, self.sc.substep_controller) {
             let k = c.stiffness_per_s(force_rate_n_per_s, &self.controller_state);
-            if k > real {
-                (real, real_state) = (k, "controller observer (FDO)");
+            let observer = (k, "controller observer (FDO)", STABILITY_MARGIN);
+            if n_of(observer, lim_re) > n_of(real, lim_re) {
+                real = observer;
             }
         }
-        let (lim_re, lim_im) = self.sc.integrator.stability_limits();
-        let n_real = real * dt / (STABILITY_MARGIN * lim_re);
-        let n_imag = if lim_im > 0.0 { omega * dt / (STABILITY_MARGIN * lim_im) } else { 0.0 };
+        let (n_real, n_imag) = (n_of(real, lim_re), n_of(imag, lim_im));
         let need = n_real.max(n_imag).ceil().max(1.0);
         if need > MAX_SUBSTEPS as f64 || !need.is_finite() {
-            let (state, rate, lim) =
-                if n_real >= n_imag { (real_state, real, lim_re) } else { ("oil column (piston)", omega, lim_im) };
+            let ((rate, state, margin), lim) = if n_real >= n_imag { (real, lim_re) } else { (imag, lim_im) };
             return Err(Error::Stiff {
                 time_s: t,
                 state: state.into(),
                 step_s: dt,
                 rate_per_s: rate,
-                needed_step_s: STABILITY_MARGIN * lim / rate,
+                needed_step_s: margin * lim / rate,
             });
         }
         let n = need as usize;
