@@ -34,6 +34,8 @@ use super::planar::{Pose2, P2};
 
 /// Number of generalized coordinates.
 pub const NG: usize = 5;
+/// Number of them that turn links (hip, knee, ankle): the Jacobian columns a link carries.
+const NJ: usize = 3;
 /// Length of the mechanical state (coordinates, then rates).
 pub const NX: usize = 2 * NG;
 /// Index of the pelvis's fore-aft position in `g`.
@@ -117,8 +119,10 @@ struct Kin {
     cs: (f64, f64),
     v: P2,
     w: f64,
-    jt: [P2; NG],
-    ja: [f64; NG],
+    /// Columns of the Jacobians for the hip, knee and ankle (the pelvis's columns are the
+    /// same for every link: `(1, 0)`, `(0, 1)`, no rotation).
+    jt: [P2; NJ],
+    ja: [f64; NJ],
     bt: P2,
     ba: f64,
 }
@@ -137,7 +141,7 @@ impl Kin {
 
     /// A point fixed in this frame at world offset `u` from the frame's origin: its position,
     /// velocity, Jacobian and velocity-product acceleration.
-    fn point(&self, u: P2) -> (P2, P2, [P2; NG], P2) {
+    fn point(&self, u: P2) -> (P2, P2, [P2; NJ], P2) {
         let pu = perp(u);
         let jt = std::array::from_fn(|i| self.jt[i].plus(pu.scale(self.ja[i])));
         let b = self.bt.plus(pu.scale(self.ba)).minus(u.scale(self.w * self.w));
@@ -334,19 +338,17 @@ impl WalkerModel {
             w: -gd[HIP],
             ..Kin::default()
         };
-        root.jt[PX] = P2::new(1.0, 0.0);
-        root.jt[PZ] = P2::new(0.0, 1.0);
-        root.ja[HIP] = -1.0;
+        root.ja[HIP - HIP] = -1.0;
         let lp = self.loop_at(g[KNEE]);
         let kd = gd[KNEE];
         for j in &self.joints {
             // The joint's coordinate, its rate, its gradient in g and its velocity-product
             // acceleration.
             let (q, qd, grad, qb) = match j.coord {
-                Coord::Zero => (0.0, 0.0, (KNEE, 0.0), 0.0),
-                Coord::Knee => (g[KNEE], kd, (KNEE, 1.0), 0.0),
-                Coord::Loop(c) => (lp[c], lp[c + 1] * kd, (KNEE, lp[c + 1]), lp[c + 2] * kd * kd),
-                Coord::Ankle => (g[ANKLE], gd[ANKLE], (ANKLE, 1.0), 0.0),
+                Coord::Zero => (0.0, 0.0, (KNEE - HIP, 0.0), 0.0),
+                Coord::Knee => (g[KNEE], kd, (KNEE - HIP, 1.0), 0.0),
+                Coord::Loop(c) => (lp[c], lp[c + 1] * kd, (KNEE - HIP, lp[c + 1]), lp[c + 2] * kd * kd),
+                Coord::Ankle => (g[ANKLE], gd[ANKLE], (ANKLE - HIP, 1.0), 0.0),
             };
             let p = out[j.parent];
             let mut c = p;
@@ -401,18 +403,18 @@ impl WalkerModel {
         for (l, &(mass, com, iyy)) in self.links.iter().enumerate() {
             let k = &kin[l];
             let (_, _, jc, bc) = k.point(k.rot(com));
-            for c in HIP..NG {
-                m[PX][c] += mass * jc[c].x;
-                m[PZ][c] += mass * jc[c].z;
-                for r in HIP..=c {
-                    m[r][c] += mass * jc[r].dot(jc[c]) + iyy * k.ja[r] * k.ja[c];
+            for c in 0..NJ {
+                m[PX][HIP + c] += mass * jc[c].x;
+                m[PZ][HIP + c] += mass * jc[c].z;
+                for r in 0..=c {
+                    m[HIP + r][HIP + c] += mass * jc[r].dot(jc[c]) + iyy * k.ja[r] * k.ja[c];
                 }
             }
             if let Some(q) = q.as_deref_mut() {
                 q[PX] -= mass * bc.x;
                 q[PZ] -= mass * bc.z;
-                for r in HIP..NG {
-                    q[r] -= mass * (jc[r].dot(bc) + GRAVITY_M_S2 * jc[r].z) + iyy * k.ja[r] * k.ba;
+                for r in 0..NJ {
+                    q[HIP + r] -= mass * (jc[r].dot(bc) + GRAVITY_M_S2 * jc[r].z) + iyy * k.ja[r] * k.ba;
                 }
             }
         }
@@ -447,8 +449,7 @@ impl WalkerModel {
         if let Some((link, p, f)) = applied.point {
             let k = &kin[link];
             let (_, _, jp, _) = k.point(k.rot(p));
-            let f = k.rot(f);
-            (0..NG).for_each(|r| q[r] += jp[r].dot(f));
+            add(&mut q, generalized(&jp, k.rot(f)));
         }
         let lp = self.loop_at(x[KNEE]);
         let [ck, cb, cr, ca] = self.damping;
@@ -462,7 +463,7 @@ impl WalkerModel {
 
     /// Sphere `s` at `kin` if it touches: its depth (m), ground point (m) and the point's
     /// velocity (m/s) and Jacobian.
-    fn sphere_at(&self, kin: &[Kin; MAX_LINKS], s: &Sphere) -> Option<(f64, P2, P2, [P2; NG])> {
+    fn sphere_at(&self, kin: &[Kin; MAX_LINKS], s: &Sphere) -> Option<(f64, P2, P2, [P2; NJ])> {
         let k = &kin[s.link];
         let u = k.rot(s.center);
         let depth = self.ground_z_m + s.radius_m - (k.t.z + u.z);
@@ -484,8 +485,7 @@ impl WalkerModel {
             let radius = sphere.radius_m;
             let mut anchor = anchors.x_m.get(i).copied().flatten().map(|a| a - belt * anchors.since_s);
             let (fx, fz) = sphere_force(&self.law, self.friction, radius, depth, point.x, [v.x, v.z], belt, &mut anchor);
-            let f = P2::new(fx, fz);
-            (0..NG).for_each(|c| q[c] += jp[c].dot(f));
+            add(q, generalized(&jp, P2::new(fx, fz)));
             sum.add(&mut r, [point.x, point.z], [fx, fz], depth);
         }
         sum.finish(&mut r);
@@ -548,8 +548,9 @@ impl WalkerModel {
             let Some((depth, _, v, jp)) = self.sphere_at(kin, s) else { continue };
             let [kn, cn, kt, ct] = sphere_stiffness(&self.law, s.radius_m, depth, -v.z);
             let free = |j: f64, i: usize| if self.locked[i] { 0.0 } else { j };
-            let jz: [f64; NG] = std::array::from_fn(|i| free(jp[i].z, i));
-            let jx: [f64; NG] = std::array::from_fn(|i| free(jp[i].x, i));
+            let (jz, jx) = (generalized(&jp, P2::new(0.0, 1.0)), generalized(&jp, P2::new(1.0, 0.0)));
+            let jz: [f64; NG] = std::array::from_fn(|i| free(jz[i], i));
+            let jx: [f64; NG] = std::array::from_fn(|i| free(jx[i], i));
             let inv_mass = |j: [f64; NG]| solve(l, j).iter().zip(&j).map(|(a, b)| a * b).sum::<f64>();
             let (wz, wx) = (inv_mass(jz), inv_mass(jx));
             rate += cn * wz + ct * wx;
@@ -680,6 +681,17 @@ fn contact_spheres(spec: &LegSpec) -> Result<Vec<Sphere>, LegError> {
         out.extend(points.into_iter().map(|p| Sphere { link: c.link, center: origin.apply(p), radius_m: radius }));
     }
     Ok(out)
+}
+
+/// The generalized force of a force `f` (N, world) at a point with the Jacobian columns `jp`
+/// (the pelvis's columns are `(1, 0)` and `(0, 1)`).
+fn generalized(jp: &[P2; NJ], f: P2) -> [f64; NG] {
+    [f.x, f.z, jp[0].dot(f), jp[1].dot(f), jp[2].dot(f)]
+}
+
+/// `q += d`.
+fn add(q: &mut [f64; NG], d: [f64; NG]) {
+    q.iter_mut().zip(d).for_each(|(q, d)| *q += d);
 }
 
 /// Lower Cholesky factor of a symmetric positive definite matrix.
