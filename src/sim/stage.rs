@@ -257,7 +257,14 @@ impl Dynamics<'_> {
             (Some(p), None) => Self::predicted(s, p, friction_n),
             (None, None) => plant.piston_at(t),
         };
-        let r = self.reference_at(t, held);
+        // The desired force enters a stage through a continuous controller and the paper's
+        // human only: a sampled controller's stages do without it (a gait reference costs two
+        // Fourier series and the friction feedforward).
+        let continuous = held.output.is_none() && self.controller.is_some();
+        let r = match continuous || sc.human.mode == HumanMode::Paper {
+            true => self.reference_at(t, held),
+            false => RefSample::default(),
+        };
         let (mut inp, rates, d_f_rate) = self.environment(t, s, &piston, &r);
         let x2 = rates.load_cell_n_per_s;
         // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
