@@ -173,7 +173,8 @@ impl<S: RecordSink> Session<S> {
         let sc = sim.model();
         let mut summary = self.metrics.finish(self.wall.as_secs_f64());
         summary.contact = self.walking.map(|w| w.finish());
-        summary.engine = sc.leg().map(|l| if l.reduced.is_some() || l.walker.is_some() { "reduced" } else { "rapier" }.to_string());
+        summary.engine =
+            sc.leg().map(|l| if l.reduced.is_some() || l.walker.is_some() { "reduced" } else { "rapier" }.to_string());
         (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
         summary.sensor_clipped_readings = sim.sensor_clips().into_iter().map(|(k, n)| (k.to_string(), n)).collect();
         summary.end_stops = sim.stop_report();

@@ -268,7 +268,8 @@ pub(super) fn apply_compliant(
         }
         let point = DVec3::new(center.x, center.y, c.ground_z_m);
         let v = rb.velocity_at_point(point);
-        let (fx, fz) = sphere_force(&c.params, c.friction, s.radius_m, x, point.x, [v.x, v.z], belt_speed_m_s, &mut s.anchor_x_m);
+        let (fx, fz) =
+            sphere_force(&c.params, c.friction, s.radius_m, x, point.x, [v.x, v.z], belt_speed_m_s, &mut s.anchor_x_m);
         // The anchor is a point of the belt: it moves with the surface.
         if let Some(anchor) = s.anchor_x_m.as_mut() {
             *anchor -= belt_speed_m_s * dt_s;
@@ -323,7 +324,12 @@ pub(crate) fn sphere_stiffness(law: &CompliantContact, radius_m: f64, depth_m: f
     let x = depth_m.max(0.0);
     let c = law.dissipation_s_per_m;
     let kt = law.friction_stiffness_n_per_m;
-    [1.5 * k * x.sqrt() * (1.0 + 1.5 * c * depth_rate_m_s).max(0.0), 1.5 * c * k * x * x.sqrt(), kt, 2.0 * (kt * FRICTION_MASS_KG).sqrt()]
+    [
+        1.5 * k * x.sqrt() * (1.0 + 1.5 * c * depth_rate_m_s).max(0.0),
+        1.5 * c * k * x * x.sqrt(),
+        kt,
+        2.0 * (kt * FRICTION_MASS_KG).sqrt(),
+    ]
 }
 
 /// Running sums of a [`ContactReading`] over contact points.

@@ -51,5 +51,5 @@ pub const BUILTIN_URDFS: [(&str, &str); 2] = [
     ("builtin:exo_leg_small", include_str!("../../urdf/exo_leg_small.urdf")),
 ];
 pub use reduced::{HipMotion, ReducedModel};
-pub use walker::WalkerModel;
 pub use stops::{EndStops, StopReport, StopSource};
+pub use walker::WalkerModel;

@@ -28,7 +28,9 @@
 //! anchor spring); and what the plant applies (cylinder, body, end stops, cuff).
 
 use super::error::LegError;
-use super::ground::{sphere_force, sphere_stiffness, CompliantContact, ContactReading, GroundConfig, ReadingSum, CORNER_RADIUS_M};
+use super::ground::{
+    sphere_force, sphere_stiffness, CompliantContact, ContactReading, GroundConfig, ReadingSum, CORNER_RADIUS_M,
+};
 use super::model::{CollisionShape, JointKind, LegSpec, GRAVITY_M_S2};
 use super::planar::{Pose2, P2};
 
@@ -247,7 +249,8 @@ impl WalkerModel {
         let (lo, hi) = (lo - MARGIN_RAD, hi + MARGIN_RAD);
         let step = (hi - lo) / (N_TABLE - 1) as f64;
         let table = loop_table(spec, lo, step)?;
-        let links = spec.links.iter().map(|l| (l.mass_kg, P2::new(l.com_m[0], l.com_m[2]), l.inertia_kg_m2[1][1])).collect();
+        let links =
+            spec.links.iter().map(|l| (l.mass_kg, P2::new(l.com_m[0], l.com_m[2]), l.inertia_kg_m2[1][1])).collect();
         let damping = [
             spec.knee_joint().damping,
             spec.barrel_joint().damping,
@@ -259,7 +262,13 @@ impl WalkerModel {
         locked[PX] = tether_locked;
         locked[ANKLE] = spec.ankle.is_none();
         let (law, friction, ground_z_m, belt_speed_m_s, spheres) = match ground {
-            None => (CompliantContact { modulus_pa: 0.0, dissipation_s_per_m: 0.0, friction_stiffness_n_per_m: 1.0 }, 0.0, 0.0, 0.0, Vec::new()),
+            None => (
+                CompliantContact { modulus_pa: 0.0, dissipation_s_per_m: 0.0, friction_stiffness_n_per_m: 1.0 },
+                0.0,
+                0.0,
+                0.0,
+                Vec::new(),
+            ),
             Some(g) => {
                 let law = g.compliant.ok_or_else(|| {
                     LegError::Unsupported(
@@ -338,7 +347,8 @@ impl WalkerModel {
             w: -gd[HIP],
             ..Kin::default()
         };
-        root.ja[HIP - HIP] = -1.0;
+        // Column 0 is the hip's: the thigh turns by -h.
+        root.ja[0] = -1.0;
         let lp = self.loop_at(g[KNEE]);
         let kd = gd[KNEE];
         for j in &self.joints {
@@ -393,6 +403,7 @@ impl WalkerModel {
     /// velocity-product forces from it. Every link's Jacobian has the unit pelvis columns
     /// (`J_c[x_p] = (1, 0)`, `J_c[z_p] = (0, 1)`, no rotation), so those rows are sums of the
     /// links' masses and first moments.
+    #[allow(clippy::needless_range_loop)] // matrix indices read as the formulas
     fn mass_matrix(&self, kin: &[Kin; MAX_LINKS], mut q: Option<&mut [f64; NG]>) -> [[f64; NG]; NG] {
         let mut m = [[0.0; NG]; NG];
         m[PX][PX] = self.total_mass_kg;
@@ -484,7 +495,8 @@ impl WalkerModel {
             let Some((depth, point, v, jp)) = self.sphere_at(kin, sphere) else { continue };
             let radius = sphere.radius_m;
             let mut anchor = anchors.x_m.get(i).copied().flatten().map(|a| a - belt * anchors.since_s);
-            let (fx, fz) = sphere_force(&self.law, self.friction, radius, depth, point.x, [v.x, v.z], belt, &mut anchor);
+            let (fx, fz) =
+                sphere_force(&self.law, self.friction, radius, depth, point.x, [v.x, v.z], belt, &mut anchor);
             add(q, generalized(&jp, P2::new(fx, fz)));
             sum.add(&mut r, [point.x, point.z], [fx, fz], depth);
         }
@@ -565,7 +577,8 @@ impl WalkerModel {
         let mut kin = [Kin::default(); MAX_LINKS];
         self.kinematics(x, &mut kin);
         let vp = (x[NG + PX], x[NG + PZ]);
-        let mut e = 0.5 * self.pelvis_mass_kg * (vp.0 * vp.0 + vp.1 * vp.1) + self.pelvis_mass_kg * GRAVITY_M_S2 * x[PZ];
+        let mut e =
+            0.5 * self.pelvis_mass_kg * (vp.0 * vp.0 + vp.1 * vp.1) + self.pelvis_mass_kg * GRAVITY_M_S2 * x[PZ];
         for (l, &(m, com, iyy)) in self.links.iter().enumerate() {
             let k = &kin[l];
             let (c, v, _, _) = k.point(k.rot(com));
@@ -628,9 +641,18 @@ fn loop_table(spec: &LegSpec, lo: f64, step: f64) -> Result<Vec<[f64; 6]>, LegEr
         let row = match (at(k - H), at(k), at(k + H)) {
             (Some(m), Some(c), Some(p)) => {
                 // The barrel angle is wrapped to (-pi, pi]: unwrap the neighbours.
-                let un = |a: f64| c.0 + (a - c.0 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+                let un = |a: f64| {
+                    c.0 + (a - c.0 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+                };
                 let (bm, bp) = (un(m.0), un(p.0));
-                Some([c.0, (bp - bm) / (2.0 * H), (bp - 2.0 * c.0 + bm) / (H * H), c.1, (p.1 - m.1) / (2.0 * H), (p.1 - 2.0 * c.1 + m.1) / (H * H)])
+                Some([
+                    c.0,
+                    (bp - bm) / (2.0 * H),
+                    (bp - 2.0 * c.0 + bm) / (H * H),
+                    c.1,
+                    (p.1 - m.1) / (2.0 * H),
+                    (p.1 - 2.0 * c.1 + m.1) / (H * H),
+                ])
             }
             _ => None,
         };
@@ -642,9 +664,10 @@ fn loop_table(spec: &LegSpec, lo: f64, step: f64) -> Result<Vec<[f64; 6]>, LegEr
             (None, None) => table.push([f64::NAN; 6]),
         }
     }
-    let first = table.iter().position(|r| !r[0].is_nan()).ok_or_else(|| {
-        LegError::InvalidArgument("the loop closes nowhere in the knee range".into())
-    })?;
+    let first = table
+        .iter()
+        .position(|r| !r[0].is_nan())
+        .ok_or_else(|| LegError::InvalidArgument("the loop closes nowhere in the knee range".into()))?;
     let r = table[first];
     table[..first].iter_mut().for_each(|x| *x = r);
     Ok(table)
@@ -719,4 +742,44 @@ fn solve(l: &[[f64; NG]; NG], mut b: [f64; NG]) -> [f64; NG] {
         b[i] = (b[i] - (i + 1..NG).map(|k| l[k][i] * b[k]).sum::<f64>()) / l[i][i];
     }
     b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::leg::geometry::{hip_knee_mass_matrix_at, potential_energy_with_hip_at};
+
+    /// The forward pass's mass matrix and gravity forces against the knee-only engine's
+    /// independent formulas (link poses differentiated numerically): the hip-knee block is
+    /// `hip_knee_mass_matrix_at`'s, the gravity forces are `-dV/dq`, the pelvis rows carry the
+    /// whole mass. Measured: the block to 8.8e-10 relative, gravity to 1.4e-8 (the
+    /// numerical derivatives' error).
+    #[test]
+    fn mass_matrix_and_gravity_match_the_independent_formulas() {
+        let m = LegSpec::from_urdf_str(crate::leg::BUILTIN_URDFS[0].1, "knee").unwrap();
+        let w = WalkerModel::new(&m, 60.0, None, false, false).unwrap();
+        for (h_deg, k_deg) in [(0.0f64, 5.0f64), (20.0, 40.0), (-10.0, 80.0)] {
+            let (h, k) = (h_deg.to_radians(), k_deg.to_radians());
+            let mut x = [0.0; NX];
+            (x[PZ], x[HIP], x[KNEE]) = (0.9, h, k);
+            let mut kin = [Kin::default(); MAX_LINKS];
+            w.kinematics(&x, &mut kin);
+            let mut q = [0.0; NG];
+            let mm = w.mass_matrix(&kin, Some(&mut q));
+            let (mhh, mhk, mkk) = hip_knee_mass_matrix_at(&m, k).unwrap();
+            let rel = |a: f64, b: f64| (a - b).abs() / b.abs().max(1e-3);
+            let block = [rel(mm[HIP][HIP], mhh), rel(mm[HIP][KNEE], mhk), rel(mm[KNEE][KNEE], mkk)];
+            assert!(block.iter().all(|e| *e < 3e-9), "({h_deg}, {k_deg}): {block:?}");
+            let e = 1e-6;
+            let dv = |dh: f64, dk: f64| {
+                (potential_energy_with_hip_at(&m, h + dh, k + dk).unwrap()
+                    - potential_energy_with_hip_at(&m, h - dh, k - dk).unwrap())
+                    / (2.0 * e)
+            };
+            let total = 60.0 + m.links().iter().map(|l| l.mass_kg).sum::<f64>();
+            assert!(rel(q[PZ], -total * GRAVITY_M_S2) < 1e-12 && q[PX] == 0.0, "{q:?}");
+            let gravity = [rel(q[HIP], -dv(e, 0.0)), rel(q[KNEE], -dv(0.0, e))];
+            assert!(gravity.iter().all(|e| *e < 4e-8), "({h_deg}, {k_deg}): {gravity:?}");
+        }
+    }
 }

@@ -6,7 +6,8 @@
 //! step's force).
 
 use super::{
-    CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs, StageInputs,
+    CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs,
+    StageInputs,
 };
 use crate::error::{Error, Result};
 use crate::integrator::Integrator;

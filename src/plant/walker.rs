@@ -7,14 +7,15 @@
 //! joint damping, the cylinder force and the compliant contact are evaluated at every stage.
 
 use super::{
-    CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs, StageInputs,
+    CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs,
+    StageInputs,
 };
 use crate::error::{Error, Result};
 use crate::human::{BodyForces, BodyState};
 use crate::integrator::Integrator;
+use crate::leg::geometry::cylinder_kinematics_at;
 use crate::leg::planar::P2;
 use crate::leg::walker::{Anchors, Applied, StepStart, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES};
-use crate::leg::geometry::cylinder_kinematics_at;
 use crate::record::{ContactRow, LegRow};
 use std::sync::Arc;
 

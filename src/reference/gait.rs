@@ -374,6 +374,21 @@ impl GaitReference {
 mod tests {
     use super::*;
 
+    /// The paired evaluation gives the same bits as two single ones (it is on every gait run's
+    /// hot path; the shipped outputs' hashes rest on it), and falls back for unlike series.
+    #[test]
+    fn eval_pair_is_bit_identical_to_eval() {
+        let x: Vec<f64> = (0..200).map(|i| i as f64 * 0.0055).collect();
+        let y1: Vec<f64> = x.iter().map(|t| (7.0 * t).sin() + 0.3 * (19.0 * t).cos()).collect();
+        let y2: Vec<f64> = x.iter().map(|t| (t * 3.0).cos() * t).collect();
+        let (a, b) = (FourierSeries::fit(&x, &y1, 1.1, 20), FourierSeries::fit(&x, &y2, 1.1, 20));
+        let other = FourierSeries::fit(&x, &y2, 1.1, 12);
+        for t in [0.0, 0.123, 0.77, 1.05, 3.3] {
+            assert_eq!(a.eval_pair(&b, t), (a.eval(t), b.eval(t)));
+            assert_eq!(a.eval_pair(&other, t), (a.eval(t), other.eval(t)));
+        }
+    }
+
     #[test]
     fn fourier_fit_reproduces_a_trigonometric_polynomial_and_its_derivatives() {
         let x: Vec<f64> = (0..60).map(|i| i as f64 * 100.0 / 60.0 + 0.3 * (i % 3) as f64).collect();

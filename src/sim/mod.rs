@@ -689,10 +689,14 @@ impl Simulation {
             imag.0 = (k_oil / p.effective_mass_kg).sqrt();
         }
         let (lim_re, lim_im) = self.sc.integrator.stability_limits();
-        let n_of = |(rate, _, margin): (f64, &str, f64), lim: f64| if lim > 0.0 { rate * dt / (margin * lim) } else { 0.0 };
+        let n_of =
+            |(rate, _, margin): (f64, &str, f64), lim: f64| if lim > 0.0 { rate * dt / (margin * lim) } else { 0.0 };
         if let (Some(c), false) = (self.plant.coupled(), self.mech_state.is_empty()) {
             let (rate, w) = c.stiffness();
-            let (contact_re, contact_im) = ((rate, "leg contact (sole dampers)", CONTACT_MARGIN), (w, "leg contact (sole springs)", CONTACT_MARGIN));
+            let (contact_re, contact_im) = (
+                (rate, "leg contact (sole dampers)", CONTACT_MARGIN),
+                (w, "leg contact (sole springs)", CONTACT_MARGIN),
+            );
             if n_of(contact_re, lim_re) > n_of(real, lim_re) {
                 real = contact_re;
             }
@@ -748,12 +752,13 @@ impl Simulation {
     fn check(&self, t: f64) -> Result<()> {
         let mech = self.mech_state.iter().zip(self.mech_names).find(|(v, _)| !v.is_finite());
         let bad = mech.map(|(v, n)| (n.to_string(), *v));
-        let bad = bad.or_else(|| self.state.first_non_finite(&self.controller_state, &self.controller_names)).or_else(|| {
-            match &self.control {
-                ControlBlock::Sampled(l) => l.ctrl.as_ref().and_then(|c| c.first_non_finite()),
-                ControlBlock::Continuous(_) => None,
-            }
-        });
+        let bad =
+            bad.or_else(|| self.state.first_non_finite(&self.controller_state, &self.controller_names)).or_else(|| {
+                match &self.control {
+                    ControlBlock::Sampled(l) => l.ctrl.as_ref().and_then(|c| c.first_non_finite()),
+                    ControlBlock::Continuous(_) => None,
+                }
+            });
         if let Some((state, value)) = bad {
             return Err(Error::Diverged { time_s: t, state, value });
         }
@@ -776,7 +781,8 @@ impl Simulation {
         let mut dc = vec![0.0; self.controller_state.len()];
         let mut dm = vec![0.0; self.mech_state.len()];
         let x = Extra { mech: &self.mech_state, ctrl: &self.controller_state };
-        let s = d.evaluate(t, &self.state, x, ExtraMut { mech: &mut dm, ctrl: &mut dc }, self.plant.as_ref(), &self.held);
+        let s =
+            d.evaluate(t, &self.state, x, ExtraMut { mech: &mut dm, ctrl: &mut dc }, self.plant.as_ref(), &self.held);
         let w1 = self.interaction(t, s.force_rate_n_per_s);
         let mut row = d.row(t, &self.state, &s, w1, self.plant.as_ref(), &self.held);
         if let ControlBlock::Sampled(l) = &self.control {

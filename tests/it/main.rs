@@ -28,4 +28,5 @@ mod shipped_outputs;
 mod subjects;
 mod validation;
 mod walking;
+mod walking_reduced;
 mod your_controller;

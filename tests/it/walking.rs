@@ -3,9 +3,14 @@
 use crate::common::*;
 use exoleg::Resources;
 
-/// Static standing at `knee_deg` (hip at half of it: the foot flat under the hip).
-fn standing(knee_deg: f64) {
-    let sets = [format!("reference.knee_deg={knee_deg:?}"), format!("reference.hip_deg={:?}", knee_deg / 2.0)];
+/// Static standing at `knee_deg` (hip at half of it: the foot flat under the hip) on `engine`;
+/// returns the last row.
+pub(crate) fn standing(knee_deg: f64, engine: &str) -> exoleg::record::Row {
+    let sets = [
+        format!("reference.knee_deg={knee_deg:?}"),
+        format!("reference.hip_deg={:?}", knee_deg / 2.0),
+        format!("leg.engine=\"{engine}\""),
+    ];
     let s = shipped("stand.toml", &sets.iter().map(String::as_str).collect::<Vec<_>>());
     let sc = s.resolve(&Resources::new()).unwrap();
     let leg = sc.model.leg().unwrap();
@@ -31,16 +36,17 @@ fn standing(knee_deg: f64) {
     assert!(c.contact_penetration_m < 0.012, "{knee_deg}: penetration {}", c.contact_penetration_m);
     assert!((l.knee_angle_deg - knee_deg).abs() < 1e-3, "{knee_deg}: knee {}", l.knee_angle_deg);
     assert!(c.knee_moment_nm > 0.0, "a standing knee needs an extensor moment");
+    *last
 }
 
 #[test]
 fn static_standing_at_20_deg_balances_weight_and_knee_moment() {
-    standing(20.0);
+    standing(20.0, "rapier");
 }
 
 #[test]
 fn static_standing_at_40_deg_balances_weight_and_knee_moment() {
-    standing(40.0);
+    standing(40.0, "rapier");
 }
 
 #[test]
