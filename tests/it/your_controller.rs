@@ -53,6 +53,10 @@ fn sha(p: &Path) -> String {
 /// binary.
 fn plugin(source: &str) -> PathBuf {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    // One build at a time: two tests asking for the same library at once compiled it to the
+    // same temporary name, and one loaded the other's half-written file.
+    static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
     let dir = DIR.get_or_init(|| tempfile::tempdir().expect("tempdir"));
     let name = Path::new(source).file_stem().unwrap().to_string_lossy().to_string();
     let lib = dir.path().join(format!("lib{name}.so"));
