@@ -36,8 +36,10 @@ pub struct LegParams {
     /// Every link's mass and inertia scaled by this factor (the plant's leg; the controller's
     /// cascade uses `controller.nominal_leg`). Default 1. 0.2..=5.
     pub mass_scale: f64,
-    /// `rapier` (default: any URDF, contact) or `reduced` (the planar closed chain in its knee
-    /// coordinate; no contact, no carriage; see README, "Speed").
+    /// `rapier` (default: any URDF, rigid or compliant contact) or `reduced` (planar legs,
+    /// integrated with the hydraulics and the controller in one ODE: the closed chain in its
+    /// knee coordinate with the thigh fixed or driven, the five-coordinate walking leg with the
+    /// compliant sole on the carriage; see README, "Speed").
     pub engine: LegEngine,
 }
 
