@@ -653,7 +653,13 @@ impl Scenario {
                             )
                             // What it refuses is in the leg's file (a mesh sole, a joint it
                             // cannot move) or the contact law (validated before).
-                            .map_err(|e| Error::input(&self.source_name, "leg.urdf (with leg.engine = \"reduced\")", e.to_string()))?;
+                            .map_err(|e| {
+                                Error::input(
+                                    &self.source_name,
+                                    "leg.urdf (with leg.engine = \"reduced\")",
+                                    e.to_string(),
+                                )
+                            })?;
                             setup.walker = Some(Arc::new(w));
                         }
                         None => setup.reduced = Some(res.reduced(&l.model).map_err(bad)?),

@@ -52,6 +52,51 @@ fn the_knee_stops_at_its_limits_on_both_engines() {
     }
 }
 
+/// The walking leg on the carriage (`stand.toml` with the hip free and the wearer's knee off)
+/// driven into both knee stops by +-3000 N on the cylinder, on both engines: the knee holds at
+/// its URDF range plus less than 1 deg, the time at the stop is reported, the CLI warns.
+#[test]
+fn the_walking_leg_stops_at_its_limits_on_both_engines() {
+    let tmp = tempfile::tempdir().unwrap();
+    let stand = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/stand.toml");
+    let free = ["hip.locked=false", "hip.stiffness_nm_per_rad=0", "wearer.knee_stiffness_nm_per_rad=0"];
+    // (engine, force, which limit, seconds at it at least). Measured (Rapier / reduced): -3000 N
+    // 0.080 / 0.590 deg past 100 for 2.95 s; +3000 N 0.014 / 0.218 deg past -10 (Rapier's
+    // pelvis, on a frictionless floor with the hip free, slides and the knee leaves the stop
+    // after 1 ms; the reduced leg holds it 2.97 s).
+    let cases = [
+        ("rapier", -3000.0, "knee_upper_s", 2.5),
+        ("rapier", 3000.0, "knee_lower_s", 0.001),
+        ("reduced", -3000.0, "knee_upper_s", 2.5),
+        ("reduced", 3000.0, "knee_lower_s", 2.5),
+    ];
+    for (i, (engine, force, side, at_least)) in cases.into_iter().enumerate() {
+        let out = tmp.path().join(format!("w{i}"));
+        let sets = [
+            format!("leg.engine=\"{engine}\""),
+            "actuator.mode=\"force\"".to_string(),
+            format!("actuator.force_n={force:?}"),
+            "wearer.knee_damping_nm_s_per_rad=0".to_string(),
+        ];
+        let mut args = vec!["run".to_string(), stand.display().to_string(), "--quiet".into(), "--out".into()];
+        args.push(out.display().to_string());
+        for s in sets.iter().map(String::as_str).chain(free) {
+            args.extend(["--set".to_string(), s.to_string()]);
+        }
+        let o = Command::new(exe()).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(o.status.success(), "{engine} {force}: {err}");
+        let s: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+        let [lo, hi] = [s["knee_range_deg"][0].as_f64().unwrap(), s["knee_range_deg"][1].as_f64().unwrap()];
+        let stops = &s["end_stops"];
+        let deepest = stops["max_penetration_deg"].as_f64().unwrap();
+        assert!(lo > -11.0 && hi < 101.0, "{engine} {force}: knee {lo}..{hi} deg");
+        assert!(deepest > 0.0 && deepest < 1.0, "{engine} {force}: {deepest} deg");
+        assert!(stops[side].as_f64().unwrap() >= at_least, "{engine} {force}: {stops}");
+        assert!(err.contains("end stops"), "{engine} {force}: no warning in {err:?}");
+    }
+}
+
 /// The shipped runs never touch a stop (the paper tables and the leg tests are unchanged).
 #[test]
 fn the_shipped_leg_runs_touch_no_stop() {
