@@ -64,8 +64,10 @@ pub const STATE_NAMES: [&str; NX] = [
     "ankle_rate_rad_s",
 ];
 
-/// Most links the engine takes (their kinematics live on the stack).
-const MAX_LINKS: usize = 16;
+/// Links whose kinematics live on the stack; a leg with more takes a heap buffer.
+const STACK_LINKS: usize = 16;
+/// Most links the engine takes.
+const MAX_LINKS: usize = 1024;
 /// Grid points of the loop table.
 const N_TABLE: usize = 6001;
 /// Margin of the loop table beyond the knee range (rad).
@@ -334,8 +336,19 @@ impl WalkerModel {
         std::array::from_fn(|c| a[c] + (b[c] - a[c]) * f)
     }
 
+    /// A buffer for every link's kinematics: `stack` when the leg fits, else `heap`.
+    fn kin_buffer<'a>(&self, stack: &'a mut [Kin; STACK_LINKS], heap: &'a mut Vec<Kin>) -> &'a mut [Kin] {
+        let n = self.links.len();
+        if n <= STACK_LINKS {
+            &mut stack[..n]
+        } else {
+            heap.resize(n, Kin::default());
+            heap
+        }
+    }
+
     /// Kinematics of every link frame at state `x` into `out` (indexed like the links).
-    fn kinematics(&self, x: &[f64; NX], out: &mut [Kin; MAX_LINKS]) {
+    fn kinematics(&self, x: &[f64; NX], out: &mut [Kin]) {
         let (g, gd) = (&x[..NG], &x[NG..]);
         let root = &mut out[self.spec.root];
         let cs = (-g[HIP]).sin_cos();
@@ -404,7 +417,7 @@ impl WalkerModel {
     /// (`J_c[x_p] = (1, 0)`, `J_c[z_p] = (0, 1)`, no rotation), so those rows are sums of the
     /// links' masses and first moments.
     #[allow(clippy::needless_range_loop)] // matrix indices read as the formulas
-    fn mass_matrix(&self, kin: &[Kin; MAX_LINKS], mut q: Option<&mut [f64; NG]>) -> [[f64; NG]; NG] {
+    fn mass_matrix(&self, kin: &[Kin], mut q: Option<&mut [f64; NG]>) -> [[f64; NG]; NG] {
         let mut m = [[0.0; NG]; NG];
         m[PX][PX] = self.total_mass_kg;
         m[PZ][PZ] = self.total_mass_kg;
@@ -452,11 +465,13 @@ impl WalkerModel {
 
     /// Evaluate the dynamics at state `x` with `applied` forces and the friction `anchors`.
     pub fn evaluate(&self, x: &[f64; NX], applied: &Applied, anchors: &Anchors) -> Evaluation {
-        let mut kin = [Kin::default(); MAX_LINKS];
-        self.kinematics(x, &mut kin);
+        let mut stack = [Kin::default(); STACK_LINKS];
+        let mut heap = Vec::new();
+        let kin = self.kin_buffer(&mut stack, &mut heap);
+        self.kinematics(x, kin);
         let mut q = applied.q;
-        let m = self.mass_matrix(&kin, Some(&mut q));
-        let contact = self.contact(&kin, anchors, &mut q);
+        let m = self.mass_matrix(kin, Some(&mut q));
+        let contact = self.contact(kin, anchors, &mut q);
         if let Some((link, p, f)) = applied.point {
             let k = &kin[link];
             let (_, _, jp, _) = k.point(k.rot(p));
@@ -474,7 +489,7 @@ impl WalkerModel {
 
     /// Sphere `s` at `kin` if it touches: its depth (m), ground point (m) and the point's
     /// velocity (m/s) and Jacobian.
-    fn sphere_at(&self, kin: &[Kin; MAX_LINKS], s: &Sphere) -> Option<(f64, P2, P2, [P2; NJ])> {
+    fn sphere_at(&self, kin: &[Kin], s: &Sphere) -> Option<(f64, P2, P2, [P2; NJ])> {
         let k = &kin[s.link];
         let u = k.rot(s.center);
         let depth = self.ground_z_m + s.radius_m - (k.t.z + u.z);
@@ -487,7 +502,7 @@ impl WalkerModel {
     }
 
     /// The contact forces at the link kinematics `kin`, added to `q`; what they add up to.
-    fn contact(&self, kin: &[Kin; MAX_LINKS], anchors: &Anchors, q: &mut [f64; NG]) -> ContactReading {
+    fn contact(&self, kin: &[Kin], anchors: &Anchors, q: &mut [f64; NG]) -> ContactReading {
         let mut r = ContactReading::default();
         let mut sum = ReadingSum::default();
         let belt = self.belt_speed_m_s;
@@ -510,10 +525,12 @@ impl WalkerModel {
     /// spring carries `mu F_n`), what the ground does then, the knee's compliance, and the gait
     /// lab's shank and foot segments.
     pub fn step_start(&self, x: &[f64; NX], anchors: &mut [Option<f64>]) -> StepStart {
-        let mut kin = [Kin::default(); MAX_LINKS];
-        self.kinematics(x, &mut kin);
+        let mut stack = [Kin::default(); STACK_LINKS];
+        let mut heap = Vec::new();
+        let kin = self.kin_buffer(&mut stack, &mut heap);
+        self.kinematics(x, kin);
         for (sphere, anchor) in self.spheres.iter().zip(anchors.iter_mut()) {
-            match self.sphere_at(&kin, sphere) {
+            match self.sphere_at(kin, sphere) {
                 None => *anchor = None,
                 Some((depth, point, v, _)) => {
                     let (r, belt) = (sphere.radius_m, self.belt_speed_m_s);
@@ -521,8 +538,8 @@ impl WalkerModel {
                 }
             }
         }
-        let contact = self.contact(&kin, &Anchors { x_m: anchors, since_s: 0.0 }, &mut [0.0; NG]);
-        let l = cholesky(&self.mass_matrix(&kin, None));
+        let contact = self.contact(kin, &Anchors { x_m: anchors, since_s: 0.0 }, &mut [0.0; NG]);
+        let l = cholesky(&self.mass_matrix(kin, None));
         let (mut p, mut h, mut weight_moment, mut mass) = (P2::default(), 0.0, 0.0, 0.0);
         for &li in &self.segments {
             let (m, com, iyy) = self.links[li];
@@ -538,7 +555,7 @@ impl WalkerModel {
         let knee_centre = kin[knee.parent].t.plus(kin[knee.parent].rot(super::model::joint_origin(knee).t));
         StepStart {
             contact,
-            stiffness: self.contact_stiffness(&kin, &l),
+            stiffness: self.contact_stiffness(kin, &l),
             knee_compliance: Self::knee_compliance(&l),
             momentum: [p.x, p.z],
             angular_momentum: h,
@@ -554,7 +571,7 @@ impl WalkerModel {
     /// spheres: a bound on the largest eigenvalue of `M^-1 C` (and `M^-1 K`) that is 7 % over it
     /// in stance on `gait_treadmill.toml` (power iteration: 5150/s against 5500/s) at a
     /// fraction of the cost. What an explicit integrator's step must resolve.
-    fn contact_stiffness(&self, kin: &[Kin; MAX_LINKS], l: &[[f64; NG]; NG]) -> (f64, f64) {
+    fn contact_stiffness(&self, kin: &[Kin], l: &[[f64; NG]; NG]) -> (f64, f64) {
         let (mut rate, mut omega2) = (0.0, 0.0);
         for s in &self.spheres {
             let Some((depth, _, v, jp)) = self.sphere_at(kin, s) else { continue };
@@ -574,8 +591,10 @@ impl WalkerModel {
     /// Total energy (J): kinetic of every link and the pelvis, potential in gravity (from
     /// z = 0), at state `x`.
     pub fn energy_j(&self, x: &[f64; NX]) -> f64 {
-        let mut kin = [Kin::default(); MAX_LINKS];
-        self.kinematics(x, &mut kin);
+        let mut stack = [Kin::default(); STACK_LINKS];
+        let mut heap = Vec::new();
+        let kin = self.kin_buffer(&mut stack, &mut heap);
+        self.kinematics(x, kin);
         let vp = (x[NG + PX], x[NG + PZ]);
         let mut e =
             0.5 * self.pelvis_mass_kg * (vp.0 * vp.0 + vp.1 * vp.1) + self.pelvis_mass_kg * GRAVITY_M_S2 * x[PZ];
@@ -762,7 +781,7 @@ mod tests {
             let (h, k) = (h_deg.to_radians(), k_deg.to_radians());
             let mut x = [0.0; NX];
             (x[PZ], x[HIP], x[KNEE]) = (0.9, h, k);
-            let mut kin = [Kin::default(); MAX_LINKS];
+            let mut kin = [Kin::default(); STACK_LINKS];
             w.kinematics(&x, &mut kin);
             let mut q = [0.0; NG];
             let mm = w.mass_matrix(&kin, Some(&mut q));
