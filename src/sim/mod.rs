@@ -760,15 +760,31 @@ impl Simulation {
                 }
             });
         if let Some((state, value)) = bad {
-            return Err(Error::Diverged { time_s: t, state, value });
+            return Err(Error::Diverged { time_s: t, state: self.with_hint(state), value });
         }
         // No valve spool travels a metre: a run whose spool does has gone unstable even if the
         // numbers are still finite (e.g. held against a pressure limit).
         let xv = self.state.hyd.spool_m;
         if xv.abs() > MAX_PLAUSIBLE_SPOOL_M {
-            return Err(Error::Diverged { time_s: t, state: "spool_m (beyond 1 m)".into(), value: xv });
+            return Err(Error::Diverged { time_s: t, state: self.with_hint("spool_m (beyond 1 m)".into()), value: xv });
         }
         Ok(())
+    }
+
+    /// A diverged state's name, with the likely cause when a continuous controller has a stiff
+    /// observer the loop does not substep (the paper's FDO: its cubic term outruns a 1 ms step
+    /// at a heel strike).
+    fn with_hint(&self, state: String) -> String {
+        let observer = match &self.control {
+            ControlBlock::Continuous(c) => c.stiffness_per_s(0.0, &vec![0.0; self.controller_state.len()]) > 0.0,
+            ControlBlock::Sampled(_) => false,
+        };
+        match observer && !self.sc.substep_controller {
+            true => format!(
+                "{state}; the controller's observer may be stiffer than sim.dt_s: try sim.substep_controller = true or a smaller step"
+            ),
+            false => state,
+        }
     }
 
     /// The row of the state now, evaluated the way the next step would see it (with the
