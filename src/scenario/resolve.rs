@@ -608,6 +608,34 @@ impl Ctx<'_> {
 }
 
 impl Scenario {
+    /// The reduced engine's model of the leg `l` into `setup`: the walking leg on the carriage,
+    /// else the knee-only closed chain (tabulated once per leg in `res`).
+    fn reduced_engine(
+        &self,
+        res: &Resources,
+        l: &crate::scenario::files::LoadedLeg,
+        setup: &mut LegSetup,
+    ) -> Result<()> {
+        let Some(b) = &setup.body else {
+            let bad = |e: crate::leg::LegError| Error::input(&self.source_name, "leg.engine", e.to_string());
+            setup.reduced = Some(res.reduced(&l.model).map_err(bad)?);
+            return Ok(());
+        };
+        let hip = &b.hip;
+        let w = crate::leg::WalkerModel::new(
+            &l.model,
+            b.pelvis_mass_kg,
+            setup.ground.as_ref(),
+            hip.locked,
+            hip.tether_locked,
+        )
+        // What it refuses is in the leg's file (a mesh sole, a joint it cannot move) or the
+        // contact law (validated before).
+        .map_err(|e| Error::input(&self.source_name, "leg.urdf (with leg.engine = \"reduced\")", e.to_string()))?;
+        setup.walker = Some(Arc::new(w));
+        Ok(())
+    }
+
     /// Resolve this validated scenario with shared inputs from `res`. Every input error
     /// (files, leg, gait, cuff) is reported here.
     pub fn resolve(&self, res: &Resources) -> Result<ResolvedScenario> {
@@ -640,30 +668,7 @@ impl Scenario {
             Some(l) => {
                 let mut setup = leg_setup(self, l, &reference, mode, walking)?;
                 if f.leg.engine == crate::plant::LegEngine::Reduced {
-                    let bad = |e: crate::leg::LegError| Error::input(&self.source_name, "leg.engine", e.to_string());
-                    match &setup.body {
-                        Some(b) => {
-                            let (hip, g) = (&b.hip, setup.ground.as_ref());
-                            let w = crate::leg::WalkerModel::new(
-                                &l.model,
-                                b.pelvis_mass_kg,
-                                g,
-                                hip.locked,
-                                hip.tether_locked,
-                            )
-                            // What it refuses is in the leg's file (a mesh sole, a joint it
-                            // cannot move) or the contact law (validated before).
-                            .map_err(|e| {
-                                Error::input(
-                                    &self.source_name,
-                                    "leg.urdf (with leg.engine = \"reduced\")",
-                                    e.to_string(),
-                                )
-                            })?;
-                            setup.walker = Some(Arc::new(w));
-                        }
-                        None => setup.reduced = Some(res.reduced(&l.model).map_err(bad)?),
-                    }
+                    self.reduced_engine(res, l, &mut setup)?;
                 }
                 PlantSetup::Leg(Box::new(setup))
             }
