@@ -205,6 +205,9 @@ pub struct StepStart {
     pub contact: ContactReading,
     /// `(M^-1)_kk`, the knee's compliance with every other coordinate free (1/(kg m^2)).
     pub knee_compliance: f64,
+    /// `M_kk`, the knee's inertia with every other coordinate held (kg m^2): the closed
+    /// chain's below the knee, as the Rapier engine's stops use.
+    pub knee_inertia_kg_m2: f64,
     /// How stiff the contacts make the motion: decay rate (1/s) and oscillation (rad/s).
     pub stiffness: (f64, f64),
     /// Momentum of the gait lab's shank and foot segments (kg m/s, x and z).
@@ -539,7 +542,8 @@ impl WalkerModel {
             }
         }
         let contact = self.contact(kin, &Anchors { x_m: anchors, since_s: 0.0 }, &mut [0.0; NG]);
-        let l = cholesky(&self.mass_matrix(kin, None));
+        let m = self.mass_matrix(kin, None);
+        let l = cholesky(&m);
         let (mut p, mut h, mut weight_moment, mut mass) = (P2::default(), 0.0, 0.0, 0.0);
         for &li in &self.segments {
             let (m, com, iyy) = self.links[li];
@@ -557,6 +561,7 @@ impl WalkerModel {
             contact,
             stiffness: self.contact_stiffness(kin, &l),
             knee_compliance: Self::knee_compliance(&l),
+            knee_inertia_kg_m2: m[KNEE][KNEE],
             momentum: [p.x, p.z],
             angular_momentum: h,
             weight_moment,
