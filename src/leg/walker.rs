@@ -186,6 +186,26 @@ pub struct Applied {
     pub q: [f64; NG],
     /// A force (N, x and z in the link's frame) at a point (m, in the link's frame) of a link.
     pub point: Option<(usize, P2, P2)>,
+    /// The hip's acceleration when it is locked and driven along a trajectory (rad/s^2; 0 for
+    /// a hip held still).
+    pub hip_accel_rad_s2: f64,
+}
+
+/// How the thigh is held.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WalkerMount {
+    /// On the pelvis carriage: the pelvis (kg) on x and z, the hip a hinge; either locked.
+    Carriage {
+        /// Mass the pelvis carries (kg).
+        pelvis_mass_kg: f64,
+        /// The hip is held at its angle.
+        hip_locked: bool,
+        /// The pelvis cannot move fore-aft.
+        tether_locked: bool,
+    },
+    /// The hip fixed at the origin, its angle prescribed (held, or driven along the gait by the
+    /// plant): the hanging leg, with the ground under it.
+    FixedHip,
 }
 
 /// The friction anchors over a step: per sphere, the anchor on the belt at the step's start
@@ -232,17 +252,17 @@ pub struct Evaluation {
 }
 
 impl WalkerModel {
-    /// The model of `spec` on the carriage with a pelvis of `pelvis_mass_kg` (kg) over the
-    /// ground `ground` (compliant law only), the hip and tether locked as given. Refuses
-    /// non-planar legs, joints the engine does not know, mesh or rolled collision shapes, and
-    /// rigid contact, naming what.
-    pub fn new(
-        spec: &LegSpec,
-        pelvis_mass_kg: f64,
-        ground: Option<&GroundConfig>,
-        hip_locked: bool,
-        tether_locked: bool,
-    ) -> Result<Self, LegError> {
+    /// The model of `spec` held by `mount` over the ground `ground` (compliant law only).
+    /// Refuses non-planar legs, joints the engine does not know, mesh or rolled collision
+    /// shapes, and rigid contact, naming what.
+    pub fn new(spec: &LegSpec, mount: WalkerMount, ground: Option<&GroundConfig>) -> Result<Self, LegError> {
+        let (pelvis_mass_kg, hip_locked, tether_locked, pelvis_fixed) = match mount {
+            WalkerMount::Carriage { pelvis_mass_kg, hip_locked, tether_locked } => {
+                (pelvis_mass_kg, hip_locked, tether_locked, false)
+            }
+            // The pelvis's mass does not enter: its coordinates are locked.
+            WalkerMount::FixedHip => (1.0, true, true, true),
+        };
         if spec.links.len() > MAX_LINKS {
             return Err(LegError::Unsupported(format!(
                 "{} links: the reduced engine's walking leg takes at most {MAX_LINKS}",
@@ -265,6 +285,7 @@ impl WalkerModel {
         let mut locked = [false; NG];
         locked[HIP] = hip_locked;
         locked[PX] = tether_locked;
+        locked[PZ] = pelvis_fixed;
         locked[ANKLE] = spec.ankle.is_none();
         let (law, friction, ground_z_m, belt_speed_m_s, spheres) = match ground {
             None => (
@@ -450,13 +471,25 @@ impl WalkerModel {
                 m[r][c] = m[c][r];
             }
         }
+        m
+    }
+
+    /// The locked coordinates out of `m g'' = q`: each moves with its prescribed acceleration
+    /// (`prescribed`, rad/s^2 or m/s^2: a driven hip's, else 0), whose inertial coupling moves
+    /// to the right-hand side; its row becomes `g_i'' = prescribed_i`.
+    #[allow(clippy::needless_range_loop)] // matrix indices read as the formulas
+    fn lock(&self, m: &mut [[f64; NG]; NG], q: &mut [f64; NG], prescribed: &[f64; NG]) {
+        for i in (0..NG).filter(|&i| self.locked[i]) {
+            for r in (0..NG).filter(|&r| r != i) {
+                q[r] -= m[r][i] * prescribed[i];
+            }
+        }
         for i in (0..NG).filter(|&i| self.locked[i]) {
             for c in 0..NG {
                 (m[i][c], m[c][i]) = (0.0, 0.0);
             }
-            m[i][i] = 1.0;
+            (m[i][i], q[i]) = (1.0, prescribed[i]);
         }
-        m
     }
 
     /// `(M^-1)_kk` from the Cholesky factor `l`.
@@ -473,7 +506,7 @@ impl WalkerModel {
         let kin = self.kin_buffer(&mut stack, &mut heap);
         self.kinematics(x, kin);
         let mut q = applied.q;
-        let m = self.mass_matrix(kin, Some(&mut q));
+        let mut m = self.mass_matrix(kin, Some(&mut q));
         let contact = self.contact(kin, anchors, &mut q);
         if let Some((link, p, f)) = applied.point {
             let k = &kin[link];
@@ -484,9 +517,9 @@ impl WalkerModel {
         let [ck, cb, cr, ca] = self.damping;
         q[KNEE] -= (ck + cb * lp[1] * lp[1] + cr * lp[4] * lp[4]) * x[NG + KNEE];
         q[ANKLE] -= ca * x[NG + ANKLE];
-        for i in (0..NG).filter(|&i| self.locked[i]) {
-            q[i] = 0.0;
-        }
+        let mut prescribed = [0.0; NG];
+        prescribed[HIP] = applied.hip_accel_rad_s2;
+        self.lock(&mut m, &mut q, &prescribed);
         Evaluation { accel: solve(&cholesky(&m), q), contact }
     }
 
@@ -543,7 +576,9 @@ impl WalkerModel {
         }
         let contact = self.contact(kin, &Anchors { x_m: anchors, since_s: 0.0 }, &mut [0.0; NG]);
         let m = self.mass_matrix(kin, None);
-        let l = cholesky(&m);
+        let mut locked = m;
+        self.lock(&mut locked, &mut [0.0; NG], &[0.0; NG]);
+        let l = cholesky(&locked);
         let (mut p, mut h, mut weight_moment, mut mass) = (P2::default(), 0.0, 0.0, 0.0);
         for &li in &self.segments {
             let (m, com, iyy) = self.links[li];
@@ -781,7 +816,12 @@ mod tests {
     #[test]
     fn mass_matrix_and_gravity_match_the_independent_formulas() {
         let m = LegSpec::from_urdf_str(crate::leg::BUILTIN_URDFS[0].1, "knee").unwrap();
-        let w = WalkerModel::new(&m, 60.0, None, false, false).unwrap();
+        let w = WalkerModel::new(
+            &m,
+            WalkerMount::Carriage { pelvis_mass_kg: 60.0, hip_locked: false, tether_locked: false },
+            None,
+        )
+        .unwrap();
         for (h_deg, k_deg) in [(0.0f64, 5.0f64), (20.0, 40.0), (-10.0, 80.0)] {
             let (h, k) = (h_deg.to_radians(), k_deg.to_radians());
             let mut x = [0.0; NX];

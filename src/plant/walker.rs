@@ -1,5 +1,6 @@
-//! The walking leg on the reduced engine (`leg.engine = "reduced"` on the pelvis carriage): the
-//! planar multibody of [`crate::leg::walker`] as a plant. With the hydraulic actuator the loop
+//! The walking leg on the reduced engine (`leg.engine = "reduced"` on the pelvis carriage, or
+//! with the hip fixed or driven over the ground): the planar multibody of
+//! [`crate::leg::walker`] as a plant. With the hydraulic actuator the loop
 //! integrates its ten states in the same ODE as the hydraulics and the controller
 //! ([`CoupledMechanics`]); with a prescribed force or none, the plant integrates them itself
 //! (RK4 under the step's force). The body's forces (hip, wearer's knee and ankle, tether,
@@ -40,21 +41,38 @@ pub struct WalkerPlant {
     body: BodyForces,
     ground_height_m: Option<f64>,
     lab_knee_moment_nm: f64,
+    /// On the carriage (else the hip is fixed at the origin).
+    carriage: bool,
+    /// The trajectory a driven hip follows (the force reference's hip; None: not driven).
+    driven_hip: Option<crate::reference::ForceReference>,
 }
 
 impl WalkerPlant {
-    /// The plant of a resolved setup on the carriage with its walking model, stepped by `dt_s`
-    /// (s).
-    pub fn new(setup: &LegSetup, model: Arc<WalkerModel>, dt_s: f64) -> Result<Self> {
-        let body = setup.body.as_ref().ok_or_else(|| Error::Usage("the walking leg needs the carriage".into()))?;
-        let d = body.targets.at(0.0);
+    /// The plant of a resolved setup with its walking model (on the carriage, or with the hip
+    /// fixed at the origin: held, or driven along `reference`'s hip when the setup's is),
+    /// stepped by `dt_s` (s).
+    pub fn new(
+        setup: &LegSetup,
+        model: Arc<WalkerModel>,
+        reference: crate::reference::ForceReference,
+        dt_s: f64,
+    ) -> Result<Self> {
         let ground_height_m = setup.ground.map(|g| g.height_m);
         let mut x = [0.0; NX];
-        x[PZ] = ground_height_m.unwrap_or(0.0) + d.pelvis_height_m + body.hip.initial_clearance_m;
-        x[HIP] = d.hip.value;
+        match (&setup.body, setup.start.hip) {
+            (Some(body), _) => {
+                let d = body.targets.at(0.0);
+                x[PZ] = ground_height_m.unwrap_or(0.0) + d.pelvis_height_m + body.hip.initial_clearance_m;
+                x[HIP] = d.hip.value;
+                x[ANKLE] = body.ankle_rad;
+            }
+            (None, Some(h)) => (x[HIP], x[NG + HIP]) = (h.value, h.rate),
+            (None, None) => {}
+        }
         x[KNEE] = setup.start.knee_rad;
-        x[ANKLE] = body.ankle_rad;
         x[NG + KNEE] = setup.start.knee_rate_rad_s;
+        let carriage = setup.body.is_some();
+        let driven_hip = (!carriage && setup.start.hip.is_some()).then_some(reference);
         let (l, arm, _) = cylinder_kinematics_at(model.spec(), x[KNEE]);
         let knee = setup.model.knee_joint();
         let cuff = (knee.child, P2::new(setup.cuff_point_m[0], setup.cuff_point_m[2]));
@@ -72,11 +90,14 @@ impl WalkerPlant {
             body: BodyForces::default(),
             ground_height_m,
             lab_knee_moment_nm: 0.0,
+            carriage,
+            driven_hip,
             model,
         };
         plant.start_step();
         // The free piston acceleration at rest in the record, as the knee-only engine gives it.
-        let free = plant.piston_accel(&plant.x, &Applied::default(), 0.0);
+        let (x0, hip_accel_rad_s2) = plant.with_hip(0.0, &plant.x);
+        let free = plant.piston_accel(&x0, &Applied { hip_accel_rad_s2, ..Default::default() }, 0.0);
         plant.piston = PistonTrack::new(l, arm * x[NG + KNEE], free);
         Ok(plant)
     }
@@ -121,7 +142,7 @@ impl WalkerPlant {
             let dir = P2::new(p.z, -p.x).scale(sign / p.norm());
             (link, p, dir.scale(-arm.signum() * cuff_force_n))
         });
-        Applied { q, point }
+        Applied { q, point, hip_accel_rad_s2: 0.0 }
     }
 
     /// The state's derivative at `t_s` with `applied` into `dx`; returns the knee acceleration.
@@ -138,6 +159,19 @@ impl WalkerPlant {
         let qdd = self.rates(t_s, x, applied, &mut dx);
         let (_, arm, slope) = cylinder_kinematics_at(self.model.spec(), x[KNEE]);
         arm * qdd + slope * x[NG + KNEE] * x[NG + KNEE]
+    }
+
+    /// State `x` with a driven hip where its trajectory has it at `t_s` (rad, rad/s), and the
+    /// hip's acceleration there (rad/s^2; 0 unless driven).
+    fn with_hip(&self, t_s: f64, x: &[f64; NX]) -> ([f64; NX], f64) {
+        let mut s = *x;
+        match self.driven_hip.as_ref().and_then(|r| r.hip_at(t_s)) {
+            Some(h) => {
+                (s[HIP], s[NG + HIP]) = (h.value, h.rate);
+                (s, h.accel)
+            }
+            None => (s, 0.0),
+        }
     }
 
     /// Effective mass at the cylinder now (kg): `1 / (L'^2 (M^-1)_kk)`.
@@ -184,11 +218,13 @@ impl CoupledMechanics for WalkerPlant {
     fn stage(&self, t_s: f64, x: &[f64], inputs: &StageInputs, dx: &mut [f64]) -> CoupledStage {
         let mut s = [0.0; NX];
         s.copy_from_slice(&x[..NX]);
+        let (s, hip_accel_rad_s2) = self.with_hip(t_s, &s);
         let (k, kd) = (s[KNEE], s[NG + KNEE]);
         let (l, arm, slope) = cylinder_kinematics_at(self.model.spec(), k);
         let v = arm * kd;
         let body = inputs.body.unwrap_or_default();
-        let applied = self.applied(arm, &body, (inputs.net_force_n)(v), inputs.cuff_force_n);
+        let applied =
+            Applied { hip_accel_rad_s2, ..self.applied(arm, &body, (inputs.net_force_n)(v), inputs.cuff_force_n) };
         let qdd = self.rates(t_s, &s, &applied, dx);
         CoupledStage {
             piston: PistonMotion {
@@ -227,6 +263,9 @@ impl Plant for WalkerPlant {
     }
 
     fn body_state(&self) -> Option<BodyState> {
+        if !self.carriage {
+            return None;
+        }
         let (x, v) = (&self.x[..NG], &self.x[NG..]);
         Some(BodyState {
             hip: (x[HIP], v[HIP]),
@@ -248,13 +287,17 @@ impl Plant for WalkerPlant {
                 let body = self.body;
                 let f = |t: f64, x: &[f64; NX]| {
                     let mut dx = [0.0; NX];
+                    let (x, hip_accel_rad_s2) = self.with_hip(t, x);
                     let arm = cylinder_kinematics_at(self.model.spec(), x[KNEE]).1;
-                    self.rates(t, x, &self.applied(arm, &body, force, inputs.cuff_force_n), &mut dx);
+                    let applied = Applied { hip_accel_rad_s2, ..self.applied(arm, &body, force, inputs.cuff_force_n) };
+                    self.rates(t, &x, &applied, &mut dx);
                     dx
                 };
                 Integrator::Rk4.step(t_s, dt_s, &self.x, f)
             }
         };
+        // A driven hip is where its trajectory is.
+        self.x = self.with_hip(t_s + dt_s, &self.x).0;
         // The friction anchors are points of the belt.
         let belt = self.model.belt_speed_m_s();
         self.anchors.iter_mut().flatten().for_each(|a| *a -= belt * dt_s);

@@ -608,30 +608,32 @@ impl Ctx<'_> {
 }
 
 impl Scenario {
-    /// The reduced engine's model of the leg `l` into `setup`: the walking leg on the carriage,
-    /// else the knee-only closed chain (tabulated once per leg in `res`).
+    /// The reduced engine's model of the leg `l` into `setup`: the walking leg on the carriage or
+    /// over the ground, else the knee-only closed chain (tabulated once per leg in `res`).
     fn reduced_engine(
         &self,
         res: &Resources,
         l: &crate::scenario::files::LoadedLeg,
         setup: &mut LegSetup,
     ) -> Result<()> {
-        let Some(b) = &setup.body else {
-            let bad = |e: crate::leg::LegError| Error::input(&self.source_name, "leg.engine", e.to_string());
-            setup.reduced = Some(res.reduced(&l.model).map_err(bad)?);
-            return Ok(());
+        use crate::leg::walker::WalkerMount;
+        let mount = match (&setup.body, &setup.ground) {
+            (Some(b), _) => WalkerMount::Carriage {
+                pelvis_mass_kg: b.pelvis_mass_kg,
+                hip_locked: b.hip.locked,
+                tether_locked: b.hip.tether_locked,
+            },
+            (None, Some(_)) => WalkerMount::FixedHip,
+            (None, None) => {
+                let bad = |e: crate::leg::LegError| Error::input(&self.source_name, "leg.engine", e.to_string());
+                setup.reduced = Some(res.reduced(&l.model).map_err(bad)?);
+                return Ok(());
+            }
         };
-        let hip = &b.hip;
-        let w = crate::leg::WalkerModel::new(
-            &l.model,
-            b.pelvis_mass_kg,
-            setup.ground.as_ref(),
-            hip.locked,
-            hip.tether_locked,
-        )
-        // What it refuses is in the leg's file (a mesh sole, a joint it cannot move) or the
-        // contact law (validated before).
-        .map_err(|e| Error::input(&self.source_name, "leg.urdf (with leg.engine = \"reduced\")", e.to_string()))?;
+        let w = crate::leg::WalkerModel::new(&l.model, mount, setup.ground.as_ref())
+            // What it refuses is in the leg's file (a mesh sole, a joint it cannot move) or the
+            // contact law (validated before).
+            .map_err(|e| Error::input(&self.source_name, "leg.urdf (with leg.engine = \"reduced\")", e.to_string()))?;
         setup.walker = Some(Arc::new(w));
         Ok(())
     }

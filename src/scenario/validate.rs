@@ -452,13 +452,6 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
         c.range("controller.nominal_leg.mass_scale", m, 0.2, 5.0)?;
     }
     if f.leg.engine == crate::plant::LegEngine::Reduced {
-        let carriage = f.hip.mode == Some(crate::human::HipMode::Carriage) || f.reference.kind == ReferenceKind::Pose;
-        if f.ground.enabled && !carriage {
-            return Err(c.fail(
-                "leg.engine",
-                "the reduced engine has ground contact only on the pelvis carriage (hip.mode = \"carriage\"): use \"rapier\" for a fixed or driven hip over the ground",
-            ));
-        }
         if f.ground.enabled && f.ground.contact == crate::plant::ContactLaw::Rigid {
             return Err(c.fail(
                 "ground.contact",

@@ -157,7 +157,7 @@ fn build_plant(sc: &Model) -> Result<Box<dyn Plant>> {
     Ok(match &sc.plant {
         PlantSetup::Bench(b) => Box::new(Bench::new(b.clone(), sc.dt_s)),
         PlantSetup::Leg(l) => match (&l.walker, &l.reduced) {
-            (Some(w), _) => Box::new(WalkerPlant::new(l, w.clone(), sc.dt_s)?),
+            (Some(w), _) => Box::new(WalkerPlant::new(l, w.clone(), sc.reference.clone(), sc.dt_s)?),
             (None, Some(r)) => Box::new(ReducedLegPlant::new(l, r.clone(), sc.reference.clone(), sc.dt_s)?),
             (None, None) => Box::new(LegPlant::new(l, sc.reference.clone(), sc.dt_s, &sc.source_name)?),
         },
