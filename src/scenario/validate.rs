@@ -451,13 +451,12 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
     if let Some(m) = f.controller.nominal_leg.mass_scale {
         c.range("controller.nominal_leg.mass_scale", m, 0.2, 5.0)?;
     }
-    if f.leg.engine == crate::plant::LegEngine::Reduced {
-        if f.ground.enabled && f.ground.contact == crate::plant::ContactLaw::Rigid {
-            return Err(c.fail(
-                "ground.contact",
-                "\"rigid\" is Rapier's contact constraint: the reduced engine has the compliant law (use \"compliant\" or leg.engine = \"rapier\")",
-            ));
-        }
+    let reduced = f.leg.engine == crate::plant::LegEngine::Reduced;
+    if reduced && f.ground.enabled && f.ground.contact == crate::plant::ContactLaw::Rigid {
+        return Err(c.fail(
+            "ground.contact",
+            "\"rigid\" is Rapier's contact constraint: the reduced engine has the compliant law (use \"compliant\" or leg.engine = \"rapier\")",
+        ));
     }
     carriage_combinations(c, f)
 }
