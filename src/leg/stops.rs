@@ -67,6 +67,26 @@ impl StopRange {
         }
     }
 
+    /// The stop's spring-damper at `q` (rad), `qd` (rad/s) with the damper `c_nm_s_per_rad`
+    /// (N m s/rad), evaluated where the joint is (N m, positive increasing q; pushing out of the
+    /// stop only): for engines that evaluate it at every integrator stage and resolve its
+    /// stiffness with their steps (the reduced engine's walking leg).
+    pub fn spring_damper(&self, q: f64, qd: f64, c_nm_s_per_rad: f64) -> f64 {
+        let k = STOP_STIFFNESS_NM_PER_RAD;
+        if q < self.lo_rad {
+            (k * (self.lo_rad - q) - c_nm_s_per_rad * qd).max(0.0)
+        } else if q > self.hi_rad {
+            -(k * (q - self.hi_rad) + c_nm_s_per_rad * qd).max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether the joint at `q` (rad) is in the stop or within `band_rad` (rad) of it.
+    pub fn near(&self, q: f64, band_rad: f64) -> bool {
+        q < self.lo_rad + band_rad || q > self.hi_rad - band_rad
+    }
+
     /// What bounds the side `side` (-1 lower, +1 upper).
     pub fn source(&self, side: f64) -> StopSource {
         if side < 0.0 {

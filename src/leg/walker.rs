@@ -228,6 +228,9 @@ pub struct StepStart {
     /// `M_kk`, the knee's inertia with every other coordinate held (kg m^2): the closed
     /// chain's below the knee, as the Rapier engine's stops use.
     pub knee_inertia_kg_m2: f64,
+    /// `(M^-1)_aa`, the ankle's compliance with every other coordinate free (1/(kg m^2); 0
+    /// for a locked ankle).
+    pub ankle_compliance: f64,
     /// How stiff the contacts make the motion: decay rate (1/s) and oscillation (rad/s).
     pub stiffness: (f64, f64),
     /// Momentum of the gait lab's shank and foot segments (kg m/s, x and z).
@@ -494,9 +497,14 @@ impl WalkerModel {
 
     /// `(M^-1)_kk` from the Cholesky factor `l`.
     fn knee_compliance(l: &[[f64; NG]; NG]) -> f64 {
+        Self::compliance(l, KNEE)
+    }
+
+    /// `(M^-1)_ii` from the Cholesky factor `l`.
+    fn compliance(l: &[[f64; NG]; NG], i: usize) -> f64 {
         let mut e = [0.0; NG];
-        e[KNEE] = 1.0;
-        solve(l, e)[KNEE]
+        e[i] = 1.0;
+        solve(l, e)[i]
     }
 
     /// Evaluate the dynamics at state `x` with `applied` forces and the friction `anchors`.
@@ -597,6 +605,7 @@ impl WalkerModel {
             stiffness: self.contact_stiffness(kin, &l),
             knee_compliance: Self::knee_compliance(&l),
             knee_inertia_kg_m2: m[KNEE][KNEE],
+            ankle_compliance: if self.locked[ANKLE] { 0.0 } else { Self::compliance(&l, ANKLE) },
             momentum: [p.x, p.z],
             angular_momentum: h,
             weight_moment,

@@ -9,7 +9,7 @@
 
 use super::{
     CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs,
-    StageInputs,
+    StageInputs, CONTACT_MARGIN,
 };
 use crate::error::{Error, Result};
 use crate::human::{BodyForces, BodyState};
@@ -19,6 +19,10 @@ use crate::leg::planar::P2;
 use crate::leg::walker::{Anchors, Applied, StepStart, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES};
 use crate::record::{ContactRow, LegRow};
 use std::sync::Arc;
+
+/// Most substeps of the plant's own integration (a prescribed or no actuator force), as the
+/// loop allows its own.
+const MAX_OWN_SUBSTEPS: usize = 1000;
 
 /// The reduced engine's walking leg.
 pub struct WalkerPlant {
@@ -35,7 +39,8 @@ pub struct WalkerPlant {
     /// The end stops, their torques on the knee and the ankle over the coming step (N m), and
     /// what they did.
     stops: crate::leg::EndStops,
-    stop_nm: (f64, f64),
+    /// The stops' dampers on the knee and the ankle over the coming step (N m s/rad).
+    stop_c: (f64, f64),
     report: crate::leg::StopReport,
     /// The body's forces over the last step.
     body: BodyForces,
@@ -85,7 +90,7 @@ impl WalkerPlant {
             dt_s,
             cuff,
             stops: setup.stops,
-            stop_nm: (0.0, 0.0),
+            stop_c: (0.0, 0.0),
             report: crate::leg::StopReport::default(),
             body: BodyForces::default(),
             ground_height_m,
@@ -103,37 +108,64 @@ impl WalkerPlant {
     }
 
     /// The start of a step at the state now: the friction anchors, what the ground does, the
-    /// knee's compliance, the segments' momenta and the end stops' torques over the step.
+    /// knee's compliance, the segments' momenta, and the end stops over the step.
+    ///
+    /// The stops are spring-dampers evaluated at every stage (`StopRange::spring_damper`; the
+    /// Rapier and knee-only engines hold a linearly implicit torque over the step instead),
+    /// critically damped with the joint's inertia with the other coordinates held (`M_kk`, as
+    /// Rapier's take the chain's M(q)). Near a stop (within 2 steps' travel or 0.01 rad) their
+    /// stiffness joins the contact's in the loop's substeps. A held torque computed for the
+    /// joint's own inertia was too soft where the foot carries the body: 3.4 deg into the knee's
+    /// lower stop under a 650 kg subject at 1 ms.
     fn start_step(&mut self) {
         let m = &self.model;
         self.now = m.step_start(&self.x, &mut self.anchors);
-        let e = self.now;
         let (q, qd) = (self.x[KNEE], self.x[NG + KNEE]);
-        // The knee's inertia with every other coordinate held, as the Rapier engine's stops
-        // take it (the closed chain's M(q)). With every other coordinate free (`1 /
-        // (M^-1)_kk`, the smallest it has) the stop was too soft wherever the foot carries the
-        // body: 3.4 deg deep under a 650 kg subject at 1 ms.
-        let inertia = e.knee_inertia_kg_m2;
-        let knee = self.stops.knee.torque(q, qd, inertia, self.dt_s, 0.5);
-        let ankle = match (self.stops.ankle, m.locked(ANKLE)) {
-            (Some(a), false) => {
-                a.torque(self.x[ANKLE], self.x[NG + ANKLE], self.stops.ankle_inertia_kg_m2, self.dt_s, 0.5)
+        let k = crate::leg::stops::STOP_STIFFNESS_NM_PER_RAD;
+        let zeta = crate::leg::stops::STOP_DAMPING_RATIO;
+        let damper = |inertia: f64| 2.0 * zeta * (k * inertia.max(1e-9)).sqrt();
+        self.stop_c = (damper(self.now.knee_inertia_kg_m2), damper(self.stops.ankle_inertia_kg_m2));
+        let near = |range: &crate::leg::stops::StopRange, q: f64, qd: f64| {
+            range.near(q, 0.01) || range.near(q + 2.0 * qd * self.dt_s, 0.0)
+        };
+        let (mut rate, mut omega) = self.now.stiffness;
+        let mut add = |c: f64, compliance: f64| {
+            rate += c * compliance;
+            omega = (omega * omega + k * compliance).sqrt();
+        };
+        if near(&self.stops.knee, q, qd) {
+            add(self.stop_c.0, self.now.knee_compliance);
+        }
+        if let (Some(a), false) = (self.stops.ankle, m.locked(ANKLE)) {
+            if near(&a, self.x[ANKLE], self.x[NG + ANKLE]) {
+                add(self.stop_c.1, self.now.ankle_compliance);
             }
+        }
+        self.now.stiffness = (rate, omega);
+    }
+
+    /// The stops' torques on the knee and the ankle at state `x` (N m).
+    fn stop_torques(&self, x: &[f64; NX]) -> (f64, f64) {
+        let knee = self.stops.knee.spring_damper(x[KNEE], x[NG + KNEE], self.stop_c.0);
+        let ankle = match (self.stops.ankle, self.model.locked(ANKLE)) {
+            (Some(a), false) => a.spring_damper(x[ANKLE], x[NG + ANKLE], self.stop_c.1),
             _ => 0.0,
         };
-        self.stop_nm = (knee, ankle);
+        (knee, ankle)
     }
 
     /// What the plant applies besides gravity, damping and contact: the body's forces `body`,
     /// the stops, the net cylinder force `force_n` (N) on the moment arm `arm` (m/rad) and the
     /// cuff force `cuff_force_n` (N, as [`PlantInputs::cuff_force_n`]).
-    fn applied(&self, arm: f64, body: &BodyForces, force_n: f64, cuff_force_n: f64) -> Applied {
+    /// The stops' torques are those at state `x`.
+    fn applied(&self, x: &[f64; NX], arm: f64, body: &BodyForces, force_n: f64, cuff_force_n: f64) -> Applied {
+        let (knee_stop, ankle_stop) = self.stop_torques(x);
         let mut q = [0.0; NG];
         q[PX] = body.pelvis_force_n[0];
         q[PZ] = body.pelvis_force_n[1];
         q[HIP] = body.hip_torque_nm;
-        q[KNEE] = body.knee_torque_nm + self.stop_nm.0 + force_n * arm;
-        q[ANKLE] = body.ankle_torque_nm + self.stop_nm.1;
+        q[KNEE] = body.knee_torque_nm + knee_stop + force_n * arm;
+        q[ANKLE] = body.ankle_torque_nm + ankle_stop;
         let point = (cuff_force_n != 0.0).then(|| {
             // Perpendicular to the shank where the cuff moves when the knee flexes; positive w1
             // pushes the knee the way that shortens the cylinder.
@@ -224,7 +256,7 @@ impl CoupledMechanics for WalkerPlant {
         let v = arm * kd;
         let body = inputs.body.unwrap_or_default();
         let applied =
-            Applied { hip_accel_rad_s2, ..self.applied(arm, &body, (inputs.net_force_n)(v), inputs.cuff_force_n) };
+            Applied { hip_accel_rad_s2, ..self.applied(&s, arm, &body, (inputs.net_force_n)(v), inputs.cuff_force_n) };
         let qdd = self.rates(t_s, &s, &applied, dx);
         CoupledStage {
             piston: PistonMotion {
@@ -289,11 +321,18 @@ impl Plant for WalkerPlant {
                     let mut dx = [0.0; NX];
                     let (x, hip_accel_rad_s2) = self.with_hip(t, x);
                     let arm = cylinder_kinematics_at(self.model.spec(), x[KNEE]).1;
-                    let applied = Applied { hip_accel_rad_s2, ..self.applied(arm, &body, force, inputs.cuff_force_n) };
+                    let applied =
+                        Applied { hip_accel_rad_s2, ..self.applied(&x, arm, &body, force, inputs.cuff_force_n) };
                     self.rates(t, &x, &applied, &mut dx);
                     dx
                 };
-                Integrator::Rk4.step(t_s, dt_s, &self.x, f)
+                // Substepped as the loop substeps the coupled path (the contact and the stops).
+                let (lim_re, lim_im) = Integrator::Rk4.stability_limits();
+                let (rate, omega) = self.now.stiffness;
+                let need = (rate * dt_s / (CONTACT_MARGIN * lim_re)).max(omega * dt_s / (CONTACT_MARGIN * lim_im));
+                let n = need.ceil().clamp(1.0, MAX_OWN_SUBSTEPS as f64) as usize;
+                let h = dt_s / n as f64;
+                (0..n).fold(self.x, |x, i| Integrator::Rk4.step(t_s + i as f64 * h, h, &x, f))
             }
         };
         // A driven hip is where its trajectory is.

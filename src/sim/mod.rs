@@ -53,8 +53,8 @@ use crate::control::{ControlOutput, Controller, DiscreteController, Measurement,
 use crate::error::{Error, Result};
 use crate::human::HumanMode;
 use crate::hydraulics::ActuatorMode;
-use crate::plant::PlantSetup;
 use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs, ReducedLegPlant, WalkerPlant};
+use crate::plant::{PlantSetup, CONTACT_MARGIN};
 use crate::record::{Layout, RecordSink, Row};
 use crate::sensors::{SampledSensors, ZeroOrderHold};
 use stage::{Dynamics, Extra, ExtraMut, MAX_MECH};
@@ -66,10 +66,6 @@ const MAX_PLAUSIBLE_SPOOL_M: f64 = 1.0;
 pub const MAX_SUBSTEPS: usize = 1000;
 /// Fraction of the integrator's stability limit a substep may use.
 const STABILITY_MARGIN: f64 = 0.5;
-/// The same for the leg's contact (reduced engine): its fastest mode is the sole's damper on
-/// the foot, heavily damped, whose integration stays damped up to near the limit (ode3 at 0.8
-/// of it: amplification -0.33 per step); the contact then substeps only where it must.
-const CONTACT_MARGIN: f64 = 0.8;
 
 /// What is held over one step: the leg's piston predictor, the outer loop of the knee cascade
 /// (its force and its integral), the cuff force, and (sampled mode) the controller output.

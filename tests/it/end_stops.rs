@@ -62,9 +62,9 @@ fn the_walking_leg_stops_at_its_limits_on_both_engines() {
     let stand = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/stand.toml");
     let free = ["ground.friction=0.8", "wearer.knee_stiffness_nm_per_rad=0"];
     // (engine, force, which limit, seconds at it at least). Measured (Rapier / reduced): -3000 N
-    // 0.144 / 0.658 deg past 100 for 2.93 / 2.91 s; +3000 N 0.065 / 0.230 deg past -10 for
-    // 2.92 / 2.91 s (the reduced stop takes the knee's inertia with the other coordinates held,
-    // M_kk, as Rapier's does; with them free it yielded 0.96 / 0.30 deg).
+    // 0.144 / 0.299 deg past 100 for 2.93 / 2.93 s; +3000 N 0.065 / 0.097 deg past -10 for
+    // 2.92 / 2.92 s (the reduced walking leg's stops are spring-dampers at every stage, in its
+    // substeps; held over the step like Rapier's they yielded 0.66 / 0.23 deg).
     let cases = [
         ("rapier", -3000.0, "knee_upper_s", 2.5),
         ("rapier", 3000.0, "knee_lower_s", 2.5),
