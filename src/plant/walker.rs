@@ -3,9 +3,10 @@
 //! [`crate::leg::walker`] as a plant. With the hydraulic actuator the loop
 //! integrates its ten states in the same ODE as the hydraulics and the controller
 //! ([`CoupledMechanics`]); with a prescribed force or none, the plant integrates them itself
-//! (RK4 under the step's force). The body's forces (hip, wearer's knee and ankle, tether,
-//! support) and the end stops' torques are held over a step, as on the Rapier engine; gravity,
-//! joint damping, the cylinder force and the compliant contact are evaluated at every stage.
+//! (RK4 under the step's force, substepped as the loop would). The body's forces (hip,
+//! wearer's knee and ankle, tether, support) are held over a step, as on the Rapier engine;
+//! gravity, joint damping, the cylinder force, the compliant contact and the end stops are
+//! evaluated at every stage.
 
 use super::{
     CoupledMechanics, CoupledStage, LegSetup, PistonMotion, PistonPredictor, PistonTrack, Plant, PlantInputs,
@@ -36,8 +37,7 @@ pub struct WalkerPlant {
     dt_s: f64,
     /// The cuff point in the shank's frame (m) and the shank's link.
     cuff: (usize, P2),
-    /// The end stops, their torques on the knee and the ankle over the coming step (N m), and
-    /// what they did.
+    /// The end stops and what they did.
     stops: crate::leg::EndStops,
     /// The stops' dampers on the knee and the ankle over the coming step (N m s/rad).
     stop_c: (f64, f64),
