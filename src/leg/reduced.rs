@@ -98,11 +98,7 @@ impl ReducedModel {
     }
 
     fn at(&self, q: f64) -> [f64; 7] {
-        let u = ((q - self.lo) / self.step).clamp(0.0, (N - 1) as f64);
-        let i = (u as usize).min(N - 2);
-        let f = u - i as f64;
-        let (a, b) = (&self.table[i], &self.table[i + 1]);
-        std::array::from_fn(|k| a[k] + (b[k] - a[k]) * f)
+        table_at(&self.table, self.lo, self.step, q)
     }
 
     /// Effective mass at the cylinder, `M_kk / L'^2` (kg).
@@ -130,6 +126,17 @@ impl ReducedModel {
     pub fn cylinder_kinematics(&self, q: f64) -> (f64, f64, f64) {
         cylinder_kinematics_at(&self.model, q)
     }
+}
+
+/// Row `x` of a table sampled on the uniform grid `lo + i * step` (at least two rows), linearly
+/// interpolated, clamped to the grid's ends.
+pub(crate) fn table_at<const C: usize>(table: &[[f64; C]], lo: f64, step: f64, x: f64) -> [f64; C] {
+    let n = table.len();
+    let u = ((x - lo) / step).clamp(0.0, (n - 1) as f64);
+    let i = (u as usize).min(n - 2);
+    let f = u - i as f64;
+    let (a, b) = (&table[i], &table[i + 1]);
+    std::array::from_fn(|k| a[k] + (b[k] - a[k]) * f)
 }
 
 /// One row of the table at knee angle `q`.

@@ -118,8 +118,7 @@ pub struct Sphere {
 #[derive(Debug, Clone, Copy, Default)]
 struct Kin {
     t: P2,
-    a: f64,
-    /// cos and sin of `a`.
+    /// cos and sin of the frame's angle (rad, about +y).
     cs: (f64, f64),
     v: P2,
     w: f64,
@@ -356,11 +355,7 @@ impl WalkerModel {
     }
 
     fn loop_at(&self, k: f64) -> [f64; 6] {
-        let u = ((k - self.lo) / self.step).clamp(0.0, (N_TABLE - 1) as f64);
-        let i = (u as usize).min(N_TABLE - 2);
-        let f = u - i as f64;
-        let (a, b) = (&self.table[i], &self.table[i + 1]);
-        std::array::from_fn(|c| a[c] + (b[c] - a[c]) * f)
+        super::reduced::table_at(&self.table, self.lo, self.step, k)
     }
 
     /// A buffer for every link's kinematics: `stack` when the leg fits, else `heap`.
@@ -381,7 +376,6 @@ impl WalkerModel {
         let cs = (-g[HIP]).sin_cos();
         *root = Kin {
             t: P2::new(g[PX], g[PZ]),
-            a: -g[HIP],
             cs: (cs.1, cs.0),
             v: P2::new(gd[PX], gd[PZ]),
             w: -gd[HIP],
@@ -406,7 +400,6 @@ impl WalkerModel {
             if j.sign != 0.0 || j.coord == Coord::Zero {
                 let (_, v, jt, bt) = p.point(o);
                 c.t = p.t.plus(o);
-                c.a = p.a + j.origin.a + j.sign * q;
                 c.v = v;
                 c.w = p.w + j.sign * qd;
                 c.jt = jt;
@@ -419,16 +412,14 @@ impl WalkerModel {
                 let (t, v, mut jt, bt) = p.point(u);
                 jt[grad.0] = jt[grad.0].plus(e.scale(grad.1));
                 c.t = t;
-                c.a = p.a + j.origin.a;
                 c.v = v.plus(e.scale(qd));
                 c.jt = jt;
                 c.bt = bt.plus(perp(e).scale(2.0 * p.w * qd)).plus(e.scale(qb));
             }
             // cos and sin of the child's angle by angle addition: the parent's, the origin's
             // pitch, and the hinge's turn.
-            let turn = if j.sign != 0.0 { j.origin.a + j.sign * q } else { j.origin.a };
             let (c2, s2) = if j.sign != 0.0 {
-                let (sn, cn) = turn.sin_cos();
+                let (sn, cn) = (j.origin.a + j.sign * q).sin_cos();
                 (cn, sn)
             } else {
                 j.origin_cs

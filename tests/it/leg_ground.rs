@@ -11,7 +11,7 @@ fn model(ankle_free: bool) -> LegSpec {
 
 /// The ground with Rapier's rigid contacts (`compliant` false) or the compliant law with the
 /// scenario defaults.
-fn ground(friction: f64, belt_speed_m_s: f64, compliant: bool) -> GroundConfig {
+pub(crate) fn ground(friction: f64, belt_speed_m_s: f64, compliant: bool) -> GroundConfig {
     GroundConfig {
         height_m: 0.0,
         friction,

@@ -38,15 +38,7 @@ fn a_dropped_reduced_leg_lands_settles_and_never_gains_energy() {
     let m = LegSpec::from_urdf_with(&text, &LegOptions { ankle_free: true, ..Default::default() }).unwrap();
     let (k, h) = (20f64.to_radians(), 10f64.to_radians());
     let fp = foot_points_at(&m, h, k, k - h).unwrap();
-    let law = CompliantContact { modulus_pa: 1e7, dissipation_s_per_m: 2.0, friction_stiffness_n_per_m: 1e5 };
-    let g = GroundConfig {
-        height_m: 0.0,
-        friction: 0.8,
-        belt_speed_m_s: 0.0,
-        contact_frequency_hz: 200.0,
-        contact_damping_ratio: 1.0,
-        compliant: Some(law),
-    };
+    let g = crate::leg_ground::ground(0.8, 0.0, true);
     let mount = WalkerMount::Carriage { pelvis_mass_kg: 1.0, hip_locked: true, tether_locked: true };
     let w = WalkerModel::new(&m, mount, Some(&g)).unwrap();
     let mut x = [0.0; NX];
@@ -208,22 +200,11 @@ fn the_reduced_engine_refuses_what_it_cannot_walk() {
     let text = std::fs::read_to_string(crate::common::leg_reference::manifest("urdf/exo_leg.urdf")).unwrap();
     let meshed = text.replacen("<sphere radius=\"0.02\"/>", "<mesh filename=\"heel.stl\"/>", 1);
     let m = LegSpec::from_urdf_with(&meshed, &LegOptions { ankle_free: true, ..Default::default() }).unwrap();
-    let g = GroundConfig {
-        height_m: 0.0,
-        friction: 0.8,
-        belt_speed_m_s: 0.0,
-        contact_frequency_hz: 200.0,
-        contact_damping_ratio: 1.0,
-        compliant: Some(CompliantContact {
-            modulus_pa: 1e7,
-            dissipation_s_per_m: 2.0,
-            friction_stiffness_n_per_m: 1e5,
-        }),
-    };
+    let g = crate::leg_ground::ground(0.8, 0.0, true);
     let mount = WalkerMount::Carriage { pelvis_mass_kg: 60.0, hip_locked: false, tether_locked: false };
     let e = WalkerModel::new(&m, mount, Some(&g)).unwrap_err().to_string();
     assert!(e.contains("mesh") && e.contains("heel.stl"), "{e}");
     // Rapier's rigid contact is not the reduced engine's.
-    let e = WalkerModel::new(&m, mount, Some(&GroundConfig { compliant: None, ..g })).unwrap_err();
+    let e = WalkerModel::new(&m, mount, Some(&crate::leg_ground::ground(0.8, 0.0, false))).unwrap_err();
     assert!(e.to_string().contains("rigid"), "{e}");
 }
