@@ -47,6 +47,40 @@ pub struct ContactRow {
     pub wearer_knee_torque_nm: f64,
 }
 
+/// What the device does and what its own sensors measure, truth (leg runs; written with a
+/// sampled controller, `Layout::device`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DeviceRow {
+    /// The thigh's angle (deg): its link frame's forward turn from upright (NaN unless the
+    /// device's columns are written).
+    pub thigh_angle_deg: f64,
+    /// The shank's angle (deg), the same way.
+    pub shank_angle_deg: f64,
+    /// The thigh's angular velocity (deg/s, forward positive).
+    pub thigh_rate_deg_s: f64,
+    /// The shank's angular velocity (deg/s).
+    pub shank_rate_deg_s: f64,
+    /// The heel's share of the vertical ground reaction (N) at the heel sensor's position.
+    pub heel_force_n: f64,
+    /// The forefoot's share (N).
+    pub forefoot_force_n: f64,
+    /// Normal force the thigh cuff carries (N, positive pressing the thigh forward).
+    pub thigh_cuff_force_n: f64,
+    /// Normal force the shank cuff carries (N, positive pressing the shank forward).
+    pub shank_cuff_force_n: f64,
+    /// Chamber A pressure (Pa).
+    pub pressure_a_pa: f64,
+    /// Chamber B pressure (Pa).
+    pub pressure_b_pa: f64,
+    /// Load pressure F_L / A_eff (Pa).
+    pub load_pressure_pa: f64,
+    /// Hydraulic power drawn from the supply, supply pressure times supply flow (W).
+    pub hydraulic_power_w: f64,
+    /// The device's knee moment (N m, extensor positive as `knee_moment_nm`): minus the net
+    /// cylinder force times the moment arm.
+    pub device_knee_moment_nm: f64,
+}
+
 /// One recorded instant. Units in the field names; see the README's output section.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Row {
@@ -93,6 +127,8 @@ pub struct Row {
     pub leg: Option<LegRow>,
     /// Contact columns, with ground contact only.
     pub contact: Option<ContactRow>,
+    /// What the device does and its sensors measure (leg runs).
+    pub device: Option<DeviceRow>,
     /// The controller's logged channels (the first `layout.log.len()` are used).
     pub log: [f64; MAX_LOGGED],
 }
@@ -109,6 +145,8 @@ pub struct Layout {
     pub leg: bool,
     /// The contact columns.
     pub contact: bool,
+    /// The device's columns.
+    pub device: bool,
     /// The controller's logged channels (columns `log_<name>`, last).
     pub log: Vec<String>,
 }
@@ -145,6 +183,23 @@ pub const LEG_COLUMNS: [&str; 6] = [
     "moment_arm_m",
 ];
 
+/// Names of the device's columns.
+pub const DEVICE_COLUMNS: [&str; 13] = [
+    "thigh_angle_deg",
+    "shank_angle_deg",
+    "thigh_rate_deg_s",
+    "shank_rate_deg_s",
+    "heel_force_n",
+    "forefoot_force_n",
+    "thigh_cuff_force_n",
+    "shank_cuff_force_n",
+    "pressure_a_pa",
+    "pressure_b_pa",
+    "load_pressure_pa",
+    "hydraulic_power_w",
+    "device_knee_moment_nm",
+];
+
 /// Names of the contact columns.
 pub const CONTACT_COLUMNS: [&str; 9] = [
     "ground_reaction_vertical_n",
@@ -165,6 +220,7 @@ impl Layout {
             + usize::from(self.knee_reference)
             + if self.leg { LEG_COLUMNS.len() } else { 0 }
             + if self.contact { CONTACT_COLUMNS.len() } else { 0 }
+            + if self.device { DEVICE_COLUMNS.len() } else { 0 }
             + self.log.len().min(MAX_LOGGED)
     }
 
@@ -179,6 +235,9 @@ impl Layout {
         }
         if self.contact {
             n.extend(CONTACT_COLUMNS.iter().map(|c| c.to_string()));
+        }
+        if self.device {
+            n.extend(DEVICE_COLUMNS.iter().map(|c| c.to_string()));
         }
         n.extend(self.log.iter().map(|l| format!("log_{l}")));
         n
@@ -242,6 +301,24 @@ impl Row {
                 c.pelvis_x_m,
                 c.support_force_n,
                 c.wearer_knee_torque_nm,
+            ]);
+        }
+        if layout.device {
+            let d = self.device.unwrap_or_default();
+            out.extend_from_slice(&[
+                d.thigh_angle_deg,
+                d.shank_angle_deg,
+                d.thigh_rate_deg_s,
+                d.shank_rate_deg_s,
+                d.heel_force_n,
+                d.forefoot_force_n,
+                d.thigh_cuff_force_n,
+                d.shank_cuff_force_n,
+                d.pressure_a_pa,
+                d.pressure_b_pa,
+                d.load_pressure_pa,
+                d.hydraulic_power_w,
+                d.device_knee_moment_nm,
             ]);
         }
         out.extend_from_slice(&self.log[..layout.log.len().min(MAX_LOGGED)]);

@@ -5,7 +5,7 @@
 
 use crate::hydraulics::Coefficients;
 use crate::reference::RefSample;
-pub use crate::sensors::{AdcCounts, Measurement};
+pub use crate::sensors::{AdcCounts, DeviceCounts, DeviceReadings, Measurement};
 use serde::Serialize;
 
 /// What a controller outputs besides the command, for logging.
@@ -142,6 +142,10 @@ pub struct SampleInput {
     pub y: Measurement,
     /// Raw A/D counts of the readings (quantised channels only): `y.<channel> = counts * lsb`.
     pub counts: AdcCounts,
+    /// The device's own sensors at t_k (IMUs, hip encoder, foot, cuffs, pressures).
+    pub device: DeviceReadings,
+    /// Their raw A/D counts.
+    pub device_counts: DeviceCounts,
     /// Desired force (N) and its first and second derivatives (N/s, N/s^2) at t_k; on a gait
     /// it includes the cascade's outer knee loop, computed from the same readings.
     pub r: RefSample,
@@ -168,8 +172,14 @@ const fn reading(name: &'static str, unit: &'static str, description: &'static s
     ReadingInfo { name, unit, description }
 }
 
-/// The readings of one sample in the order of [`SampleInput::reading_values`].
-pub const READINGS: [ReadingInfo; 17] = [
+/// Number of readings of one sample ([`READINGS`]): the force loop's 17 (ABI 1.0) and the
+/// device's 23 (ABI 1.1).
+pub const N_READINGS: usize = 17 + crate::sensors::DEVICE_READINGS;
+
+/// The readings of one sample in the order of [`SampleInput::reading_values`]. The first 17
+/// are the force loop's (ABI 1.0); the device's own sensors follow (ABI 1.1). Sensor frames:
+/// x forward, y left, z up along the segment with the default mounting.
+pub const READINGS: [ReadingInfo; N_READINGS] = [
     reading("t_s", "s", "sample instant"),
     reading("period_s", "s", "sample period"),
     reading("force_n", "N", "load cell"),
@@ -180,20 +190,44 @@ pub const READINGS: [ReadingInfo; 17] = [
     reading("piston_accel_m_s2", "m/s2", "filtered difference of the piston velocity"),
     reading("knee_rad", "rad", "knee flexion (encoder)"),
     reading("knee_rate_rad_s", "rad/s", "the encoder's filtered difference"),
-    reading("ref_force_n", "N", "desired force at the sample instant"),
+    reading("ref_force_n", "N", "desired force at the sample instant (NaN with reference.force = \"none\")"),
     reading("ref_force_rate_n_per_s", "N/s", "its first derivative"),
     reading("ref_force_accel_n_per_s2", "N/s2", "its second derivative"),
     reading("next_ref_force_n", "N", "desired force one sample period ahead"),
     reading("next_ref_force_rate_n_per_s", "N/s", "its first derivative"),
     reading("next_ref_force_accel_n_per_s2", "N/s2", "its second derivative"),
     reading("valve_command_limit", "", "|u| <= limit (0 = none)"),
+    reading("hip_rad", "rad", "hip flexion encoder (thigh relative to the pelvis)"),
+    reading("hip_rate_rad_s", "rad/s", "the hip encoder's filtered difference"),
+    reading("thigh_accel_x_m_s2", "m/s2", "thigh IMU accelerometer x (specific force, gravity included)"),
+    reading("thigh_accel_y_m_s2", "m/s2", "thigh IMU accelerometer y"),
+    reading("thigh_accel_z_m_s2", "m/s2", "thigh IMU accelerometer z"),
+    reading("thigh_gyro_x_rad_s", "rad/s", "thigh IMU gyroscope x"),
+    reading("thigh_gyro_y_rad_s", "rad/s", "thigh IMU gyroscope y (sagittal: -d(thigh angle)/dt)"),
+    reading("thigh_gyro_z_rad_s", "rad/s", "thigh IMU gyroscope z"),
+    reading("shank_accel_x_m_s2", "m/s2", "shank IMU accelerometer x"),
+    reading("shank_accel_y_m_s2", "m/s2", "shank IMU accelerometer y"),
+    reading("shank_accel_z_m_s2", "m/s2", "shank IMU accelerometer z"),
+    reading("shank_gyro_x_rad_s", "rad/s", "shank IMU gyroscope x"),
+    reading("shank_gyro_y_rad_s", "rad/s", "shank IMU gyroscope y (sagittal: -d(shank angle)/dt)"),
+    reading("shank_gyro_z_rad_s", "rad/s", "shank IMU gyroscope z"),
+    reading("heel_force_n", "N", "heel force sensor"),
+    reading("forefoot_force_n", "N", "forefoot force sensor"),
+    reading("foot_contact", "", "foot switch: 1 when the heel or forefoot reads above its threshold"),
+    reading("thigh_cuff_force_n", "N", "thigh cuff force sensor (normal, forward positive)"),
+    reading("shank_cuff_force_n", "N", "shank cuff force sensor (normal, forward positive)"),
+    reading("pressure_a_pa", "Pa", "chamber A (cap side) pressure"),
+    reading("pressure_b_pa", "Pa", "chamber B (rod side) pressure"),
+    reading("supply_pressure_pa", "Pa", "supply pressure"),
+    reading("load_pressure_pa", "Pa", "load pressure F_L / A_eff"),
 ];
 
 impl SampleInput {
     /// The readings as numbers, in the order of [`READINGS`].
-    pub fn reading_values(&self) -> [f64; 17] {
+    pub fn reading_values(&self) -> [f64; N_READINGS] {
         let (y, r, n) = (&self.y, &self.r, &self.r_next);
-        [
+        let mut v = [0.0; N_READINGS];
+        v[..17].copy_from_slice(&[
             self.t_s,
             self.period_s,
             y.force_n,
@@ -211,7 +245,9 @@ impl SampleInput {
             n.rate,
             n.accel,
             self.valve_limit.0,
-        ]
+        ]);
+        v[17..].copy_from_slice(&self.device.values());
+        v
     }
 }
 

@@ -59,7 +59,7 @@ struct Run {
     sim: Simulation,
     layout: Layout,
     /// The readings of the latest sample (the order of [`crate::control::READINGS`]).
-    readings: [f64; 17],
+    readings: [f64; crate::control::N_READINGS],
     /// The step whose sample is taken.
     sampled_at: Option<usize>,
     /// The time-series row at a step, once asked for.

@@ -34,11 +34,15 @@ pub struct HumanParams {
     pub cuff_link: String,
     /// Cuff point in the cuff link's frame (m). Default [0, 0, -0.2].
     pub cuff_xyz: [f64; 3],
+    /// The thigh cuff's point in the thigh's link frame (the knee's parent; m): where the
+    /// thigh cuff sensor sits. Default: on the thigh's axis, 40 % of the thigh's length above
+    /// the knee.
+    pub thigh_cuff_xyz: Option<[f64; 3]>,
 }
 
 impl Default for HumanParams {
     fn default() -> Self {
-        Self { mode: HumanMode::Off, k_p: 0.05, k_d: 1e-3, cuff_link: "shank".into(), cuff_xyz: [0.0, 0.0, -0.2] }
+        Self { mode: HumanMode::Off, k_p: 0.05, k_d: 1e-3, cuff_link: "shank".into(), cuff_xyz: [0.0, 0.0, -0.2], thigh_cuff_xyz: None }
     }
 }
 

@@ -64,6 +64,12 @@ pub struct Cylinder {
     pub force_bounds_n: (f64, f64),
     /// Spool travel limit (m), 0 = none.
     pub spool_limit_m: f64,
+    /// Piston areas A1 (cap side) and A2 (rod side) (m^2).
+    pub areas_m2: (f64, f64),
+    /// Supply and return pressures (Pa).
+    pub supply_return_pa: (f64, f64),
+    /// Valve flow gain K_q (m^2/s).
+    pub k_q: f64,
 }
 
 impl Cylinder {
@@ -79,7 +85,50 @@ impl Cylinder {
             HydraulicModel::Linear => Chambers::Linear,
             HydraulicModel::TwoChamber => Chambers::Two(TwoChamber::new(h)),
         };
-        Self { coeffs: h.coefficients(), chambers, force_bounds_n, spool_limit_m }
+        Self {
+            coeffs: h.coefficients(),
+            chambers,
+            force_bounds_n,
+            spool_limit_m,
+            areas_m2: (h.a1_m2, h.a2_m2),
+            supply_return_pa: (h.supply_pressure_pa, h.return_pressure_pa),
+            k_q: h.k_q,
+        }
+    }
+
+    /// The chamber pressures (Pa) at a state: the two-chamber model's; for the linear model
+    /// (whose state is the load force alone) the pressures that give F_L about the valve's
+    /// operating point, whose mean pressure is `(p_s + p_r) / 2`:
+    /// `p_A = (F_L + A2 (p_s + p_r)) / (A1 + A2)`, `p_B = (A1 (p_s + p_r) - F_L) / (A1 + A2)`,
+    /// so that `A1 p_A - A2 p_B = F_L`.
+    pub fn pressures_pa(&self, h: &HydraulicState) -> (f64, f64) {
+        match &self.chambers {
+            Chambers::Two(tc) => tc.pressures(h.force_n, h.mean_pressure_pa),
+            Chambers::Linear => {
+                let (a1, a2) = self.areas_m2;
+                let sum = self.supply_return_pa.0 + self.supply_return_pa.1;
+                ((h.force_n + a2 * sum) / (a1 + a2), (a1 * sum - h.force_n) / (a1 + a2))
+            }
+        }
+    }
+
+    /// The load pressure `F_L / A_eff` (Pa) with `A_eff = (A1 + A2) / 2`, the area of the
+    /// paper's symmetric-cylinder linearisation (n2 = beta (A1 + A2)^2 / (2 V0)).
+    pub fn load_pressure_pa(&self, h: &HydraulicState) -> f64 {
+        h.force_n / (0.5 * (self.areas_m2.0 + self.areas_m2.1))
+    }
+
+    /// Flow drawn from the supply (m^3/s, >= 0): the two-chamber orifice flow from the supply,
+    /// or the linear valve's `K_q |x_v|` (the load flow of the paper's valve, which a
+    /// critically centred four-way valve draws from the supply).
+    pub fn supply_flow_m3_s(&self, h: &HydraulicState) -> f64 {
+        match &self.chambers {
+            Chambers::Two(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, h.mean_pressure_pa);
+                tc.supply_flow_m3_s(h.spool_m, p1, p2)
+            }
+            Chambers::Linear => self.k_q * h.spool_m.abs(),
+        }
     }
 
     /// True for the two-chamber plant.

@@ -148,6 +148,14 @@ impl TwoChamber {
         (-self.beta * self.a1 * dx / v1, self.beta * self.a2 * dx / v2)
     }
 
+    /// Flow drawn from the supply through the valve (m^3/s, >= 0): the orifice flow into the
+    /// chamber the spool connects to the supply (chamber 1 for `x_v >= 0`, chamber 2 else),
+    /// without the flow-pressure term of the linearisation.
+    pub fn supply_flow_m3_s(&self, x_v: f64, p1: f64, p2: f64) -> f64 {
+        let drop = if x_v >= 0.0 { self.p_s - p1 } else { self.p_s - p2 };
+        self.k_o * x_v.abs() * drop.max(0.0).sqrt()
+    }
+
     /// Clamp pressures to [p_r, p_s].
     pub fn clamp(&self, p1: f64, p2: f64) -> (f64, f64) {
         (p1.clamp(self.p_r, self.p_s), p2.clamp(self.p_r, self.p_s))

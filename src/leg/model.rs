@@ -249,6 +249,44 @@ impl LegSpec {
         self.ankle.map(|j| &self.joints[j])
     }
 
+    /// The foot's link: the ankle's child, or the shank when the leg has no ankle.
+    pub fn foot_link(&self) -> usize {
+        self.ankle_joint().map_or(self.knee_joint().child, |a| a.child)
+    }
+
+    /// Where the device's sensors sit by default on this leg: the IMUs 6 cm in front of the
+    /// thigh's and the shank's axis, 40 % and 35 % of the way down the segment (the knee's
+    /// origin in the thigh frame, the ankle's in the shank frame; 0.4 m for a shank without
+    /// an ankle), and the heel and forefoot sensors at the rearmost and foremost contact
+    /// points of the foot link's collision shapes (x in the foot frame; -0.03 and 0.15 m
+    /// without any).
+    pub fn device_defaults(&self) -> crate::sensors::DeviceDefaults {
+        let len = |o: [f64; 3]| o[0].hypot(o[2]);
+        let thigh = len(self.knee_joint().origin_xyz);
+        let shank = self.ankle_joint().map_or(0.4, |a| len(a.origin_xyz));
+        let foot = self.foot_link();
+        let xs: Vec<f64> = self
+            .collisions
+            .iter()
+            .filter(|c| c.link == foot)
+            .flat_map(|c| {
+                let half = match &c.shape {
+                    CollisionShape::Box { size } => size[0] / 2.0,
+                    CollisionShape::Cylinder { radius, .. } => *radius,
+                    _ => 0.0,
+                };
+                [c.origin_xyz[0] - half, c.origin_xyz[0] + half]
+            })
+            .collect();
+        let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let foot_x_m = if hi > lo { (lo, hi) } else { (-0.03, 0.15) };
+        crate::sensors::DeviceDefaults {
+            imu_xyz_m: [[0.06, 0.0, -0.4 * thigh], [0.06, 0.0, -0.35 * shank]],
+            foot_x_m,
+        }
+    }
+
     /// The collision shapes of every link (used with ground contact).
     pub fn collisions(&self) -> &[CollisionSpec] {
         &self.collisions

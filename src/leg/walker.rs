@@ -176,6 +176,8 @@ pub struct WalkerModel {
     belt_speed_m_s: f64,
     /// Links of the gait lab's shank and foot segments.
     segments: Vec<usize>,
+    /// The thigh's, shank's and foot's links (the knee's parent and child, the ankle's child).
+    sensor_links: [usize; 3],
 }
 
 /// What a stage applies besides gravity, damping and contact.
@@ -242,6 +244,8 @@ pub struct StepStart {
     pub segment_mass_kg: f64,
     /// The knee centre (m, world x and z).
     pub knee_centre: P2,
+    /// The thigh's, shank's and foot's link frames (the device's sensors).
+    pub links: [crate::sensors::SegmentState; 3],
 }
 
 /// The result of one evaluation.
@@ -331,6 +335,7 @@ impl WalkerModel {
             ground_z_m,
             belt_speed_m_s,
             segments,
+            sensor_links: [knee.parent, knee.child, foot],
         })
     }
 
@@ -602,6 +607,15 @@ impl WalkerModel {
             weight_moment,
             segment_mass_kg: mass,
             knee_centre,
+            links: self.sensor_links.map(|l| {
+                let k = &kin[l];
+                crate::sensors::SegmentState {
+                    origin_m: [k.t.x, k.t.z],
+                    cos_sin: k.cs,
+                    velocity_m_s: [k.v.x, k.v.z],
+                    omega_rad_s: k.w,
+                }
+            }),
         }
     }
 

@@ -8,6 +8,7 @@ use crate::leg::{
     LegError, LegForces, LegSolverParams, LegSpec, Mount,
 };
 use crate::record::{ContactRow, LegRow};
+use crate::sensors::{FootLoad, LegKinematics};
 use rapier3d_f64::glamx::DVec3;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -228,6 +229,9 @@ pub struct LegSetup {
     /// The cuff point in the shank's frame (m), resolved from `human.cuff_link` and
     /// `human.cuff_xyz` once.
     pub cuff_point_m: [f64; 3],
+    /// The thigh and shank cuffs' lever arms about the knee axis (m): the sagittal distance
+    /// from the knee centre to the thigh cuff (`human.thigh_cuff_xyz`) and to the shank cuff.
+    pub cuff_lever_m: (f64, f64),
     /// The run starts on its gait trajectory (knee angle and rate from the reference).
     pub start_on_trajectory: bool,
     /// The ground, when contact is on.
@@ -493,6 +497,27 @@ impl Plant for LegPlant {
             return Err(Error::Diverged { time_s: t_s + dt_s, state: "knee_angle_rad".into(), value: q1 });
         }
         Ok(dl)
+    }
+
+    fn leg_kinematics(&self) -> Option<LegKinematics> {
+        let knee = self.model.knee_joint();
+        let foot = self.model.ankle_joint().map_or(knee.child, |a| a.child);
+        let leg = &self.leg;
+        Some(LegKinematics {
+            hip: (leg.hip_angle_rad(), leg.hip_velocity_rad_s()),
+            thigh: leg.link_planar_state(knee.parent),
+            shank: leg.link_planar_state(knee.child),
+            foot: leg.link_planar_state(foot),
+        })
+    }
+
+    fn foot_load(&self) -> Option<FootLoad> {
+        self.ground_height_m?;
+        let c = self.leg.contact();
+        let knee = self.model.knee_joint();
+        let foot = self.model.ankle_joint().map_or(knee.child, |a| a.child);
+        let cop_x_m = c.cop_m.map_or(0.0, |p| self.leg.link_planar_state(foot).to_local(p)[0]);
+        Some(FootLoad { vertical_n: c.vertical_n, cop_x_m })
     }
 
     fn contact_row(&self) -> Option<ContactRow> {

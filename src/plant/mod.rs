@@ -255,6 +255,15 @@ pub trait Plant: Send {
     fn body_state(&self) -> Option<crate::human::BodyState> {
         None
     }
+    /// The leg's segments now, for the device's sensors (None for plants without a leg).
+    fn leg_kinematics(&self) -> Option<crate::sensors::LegKinematics> {
+        None
+    }
+    /// The ground's vertical reaction on the foot and where it acts along the foot (from the
+    /// same contact as [`Self::contact_row`]; None without ground contact).
+    fn foot_load(&self) -> Option<crate::sensors::FootLoad> {
+        None
+    }
     /// The leg columns of the record now (None for plants without a leg).
     fn leg_row(&self) -> Option<LegRow> {
         None

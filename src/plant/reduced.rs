@@ -13,6 +13,7 @@ use crate::error::{Error, Result};
 use crate::integrator::Integrator;
 use crate::leg::{moment_arm_slope_at, ReducedModel};
 use crate::record::LegRow;
+use crate::sensors::{LegKinematics, SegmentState};
 use crate::reference::{ForceReference, RefSample};
 use std::sync::Arc;
 
@@ -27,6 +28,8 @@ pub struct ReducedLegPlant {
     cuff_radius_m: f64,
     driven_hip: bool,
     hip_rad: f64,
+    /// Time of the state (s): the start of the coming step.
+    t_s: f64,
     dt_s: f64,
     /// The end stops, their torque held over the coming step (N m, from the state at its
     /// start, as on the Rapier engine), and what they did.
@@ -54,6 +57,7 @@ impl ReducedLegPlant {
             cuff_radius_m: (cuff[0] * cuff[0] + cuff[2] * cuff[2]).sqrt(),
             driven_hip,
             hip_rad: hip.value,
+            t_s: 0.0,
             dt_s,
             stops: setup.stops,
             stop_nm: 0.0,
@@ -172,6 +176,7 @@ impl Plant for ReducedLegPlant {
         let dl = l1 - self.piston.length_m();
         self.piston.record(l1, v, force, m.effective_mass_kg(q0), dt_s);
         self.hip_rad = self.hip_at(t_s + dt_s).0;
+        self.t_s = t_s + dt_s;
         self.report.add(&self.stops, self.q, None, dt_s);
         let arm = m.cylinder(self.q).1;
         // Integrated exactly (or by RK4) over the step: q' = q + qd dt + a dt^2 / 2.
@@ -180,6 +185,33 @@ impl Plant for ReducedLegPlant {
             return Err(Error::Diverged { time_s: t_s + dt_s, state: "knee_angle_rad".into(), value: self.q });
         }
         Ok(dl)
+    }
+
+    fn leg_kinematics(&self) -> Option<LegKinematics> {
+        let spec = self.model.model();
+        let (h, hd, _) = self.hip_at(self.t_s);
+        let poses = crate::leg::link_poses_full_at(spec, h, self.q, 0.0)?;
+        let knee = spec.knee_joint();
+        let foot = spec.ankle_joint().map_or(knee.child, |a| a.child);
+        let w_thigh = -hd;
+        let w_shank = w_thigh + knee.axis[1].signum() * self.qd;
+        let state = |p: &crate::leg::planar::Pose2, v: [f64; 2], w: f64| SegmentState {
+            origin_m: [p.t.x, p.t.z],
+            cos_sin: (p.a.cos(), p.a.sin()),
+            velocity_m_s: v,
+            omega_rad_s: w,
+        };
+        // The hip sits still at the origin; the knee centre turns with the thigh, the foot
+        // (its ankle locked in the air) with the shank.
+        let (k, f) = (poses[knee.child].t, poses[foot].t);
+        let v_knee = [w_thigh * k.z, -w_thigh * k.x];
+        let v_foot = [v_knee[0] + w_shank * (f.z - k.z), v_knee[1] - w_shank * (f.x - k.x)];
+        Some(LegKinematics {
+            hip: (h, hd),
+            thigh: state(&poses[knee.parent], [0.0, 0.0], w_thigh),
+            shank: state(&poses[knee.child], v_knee, w_shank),
+            foot: state(&poses[foot], v_foot, w_shank),
+        })
     }
 
     fn leg_row(&self) -> Option<LegRow> {

@@ -19,6 +19,7 @@ use crate::leg::geometry::cylinder_kinematics_at;
 use crate::leg::planar::P2;
 use crate::leg::walker::{Anchors, Applied, StepStart, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES};
 use crate::record::{ContactRow, LegRow};
+use crate::sensors::{FootLoad, LegKinematics};
 use std::sync::Arc;
 
 /// Most substeps of the plant's own integration (a prescribed or no actuator force), as the
@@ -367,6 +368,18 @@ impl Plant for WalkerPlant {
             loop_closure_gap_m: 0.0,
             moment_arm_m: cylinder_kinematics_at(self.model.spec(), k).1,
         })
+    }
+
+    fn leg_kinematics(&self) -> Option<LegKinematics> {
+        let [thigh, shank, foot] = self.now.links;
+        Some(LegKinematics { hip: (self.x[HIP], self.x[NG + HIP]), thigh, shank, foot })
+    }
+
+    fn foot_load(&self) -> Option<FootLoad> {
+        self.ground_height_m?;
+        let c = &self.now.contact;
+        let cop_x_m = c.cop_m.map_or(0.0, |p| self.now.links[2].to_local(p)[0]);
+        Some(FootLoad { vertical_n: c.vertical_n, cop_x_m })
     }
 
     fn contact_row(&self) -> Option<ContactRow> {

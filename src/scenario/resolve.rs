@@ -438,12 +438,19 @@ fn leg_setup(
     let cuff_point_m = crate::plant::cuff_point_from_model(&l.model, &f.human.cuff_link, f.human.cuff_xyz)
         .map_err(|m| Error::input(&s.source_name, "human.cuff_link", m))?;
     let (ground, body) = body_setup(s, &l.model, mode, walking, &start, reference)?;
+    let knee = l.model.knee_joint().origin_xyz;
+    let thigh_cuff = f.human.thigh_cuff_xyz.unwrap_or([knee[0], 0.0, 0.6 * knee[2]]);
+    let cuff_lever_m = ((thigh_cuff[0] - knee[0]).hypot(thigh_cuff[2] - knee[2]), cuff_point_m[0].hypot(cuff_point_m[2]));
+    if cuff_lever_m.0 < 1e-3 {
+        return Err(Error::input(&s.source_name, "human.thigh_cuff_xyz", "lies on the knee axis: it carries no moment"));
+    }
     Ok(LegSetup {
         model: l.model.clone(),
         mass: l.mass.clone(),
         start,
         solver_iterations: f.leg.solver_iterations,
         cuff_point_m,
+        cuff_lever_m,
         start_on_trajectory,
         ground,
         body,
@@ -693,7 +700,21 @@ impl Scenario {
         let dt_s = f.sim.dt_s;
         let sample_every =
             (f.controller.sample_period_s > 0.0).then(|| (f.controller.sample_period_s / dt_s).round() as usize);
+        let defaults = match &leg {
+            Some(l) => l.model.device_defaults(),
+            None => crate::sensors::DeviceDefaults { imu_xyz_m: [[0.0; 3]; 2], foot_x_m: (-0.03, 0.15) },
+        };
+        let device = match sample_every {
+            Some(_) => Some(
+                f.sensors
+                    .device_setup(f.controller.sample_period_s, &defaults)
+                    .map_err(|(key, m)| Error::input(&self.source_name, key, m))?,
+            ),
+            None => None,
+        };
         let model = Model {
+            device_columns: leg.is_some() && device.is_some(),
+            device,
             source_name: self.source_name.clone(),
             steps: (f.sim.duration_s / dt_s).round() as usize,
             dt_s,

@@ -304,28 +304,92 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
     Ok(())
 }
 
+/// One `[sensors.<channel>]` table: noise, range and bits; `saturates`: its range clamps
+/// without quantisation (the device's sensors), else it needs bits to mean anything.
+fn channel_params(c: &Check, f: &ScenarioFile, key: &str, ch: &crate::sensors::ChannelParams, saturates: bool) -> Result<()> {
+    if let Some(n) = ch.noise_std {
+        c.non_negative(&format!("{key}.noise_std"), n)?;
+    }
+    if let Some(r) = ch.range {
+        c.positive(&format!("{key}.range"), r)?;
+    }
+    bits(c, &format!("{key}.bits"), ch.bits)?;
+    if !saturates && ch.range.is_some() && ch.bits.is_none() && !f.sensors.preset.quantises() {
+        return Err(c.fail(
+            &format!("{key}.range"),
+            format!("has no effect without quantisation: set {key}.bits or a quantising sensors.preset (\"adc16\", \"adc32\", \"device\")"),
+        ));
+    }
+    Ok(())
+}
+
+fn bits(c: &Check, key: &str, b: Option<u32>) -> Result<()> {
+    if b.is_some_and(|b| b == 0 || b > 52) {
+        return Err(c.fail(
+            key,
+            "must be 1..=52 (leave it out for the preset's; sensors.preset = \"ideal\" quantises nothing)",
+        ));
+    }
+    Ok(())
+}
+
+/// The device's own sensors: IMUs, foot, hip, cuffs, pressures.
+fn device_sensors(c: &Check, f: &ScenarioFile) -> Result<()> {
+    let s = &f.sensors;
+    for (key, ch) in [
+        ("sensors.hip", &s.hip),
+        ("sensors.thigh_cuff", &s.thigh_cuff),
+        ("sensors.shank_cuff", &s.shank_cuff),
+        ("sensors.pressure_a", &s.pressure_a),
+        ("sensors.pressure_b", &s.pressure_b),
+        ("sensors.supply_pressure", &s.supply_pressure),
+        ("sensors.load_pressure", &s.load_pressure),
+    ] {
+        channel_params(c, f, key, ch, true)?;
+    }
+    for (name, imu) in [("sensors.thigh_imu", &s.thigh_imu), ("sensors.shank_imu", &s.shank_imu)] {
+        for (kind, a) in [("accel", &imu.accel), ("gyro", &imu.gyro)] {
+            let key = format!("{name}.{kind}");
+            for (k, v) in [("noise_density", a.noise_density), ("bias_random_walk", a.bias_random_walk)] {
+                if let Some(v) = v {
+                    c.non_negative(&format!("{key}.{k}"), v)?;
+                }
+            }
+            for (i, e) in a.scale_error.unwrap_or_default().iter().enumerate() {
+                c.range(&format!("{key}.scale_error.{i}"), *e, -0.5, 0.5)?;
+            }
+            if let Some(r) = a.range {
+                c.positive(&format!("{key}.range"), r)?;
+            }
+            bits(c, &format!("{key}.bits"), a.bits)?;
+        }
+        if let Some(r) = imu.rate_hz {
+            c.positive(&format!("{name}.rate_hz"), r)?;
+        }
+    }
+    let foot = &s.foot;
+    for (k, v) in [("threshold_n", foot.threshold_n), ("noise_std", foot.noise_std)] {
+        if let Some(v) = v {
+            c.non_negative(&format!("sensors.foot.{k}"), v)?;
+        }
+    }
+    if let Some(r) = foot.range {
+        c.positive("sensors.foot.range", r)?;
+    }
+    if let Some(r) = foot.rate_hz {
+        c.positive("sensors.foot.rate_hz", r)?;
+    }
+    bits(c, "sensors.foot.bits", foot.bits)
+}
+
 /// `[sensors]`, `[actuator]`, `[disturbance]`.
 fn sensors_and_actuator(c: &Check, f: &ScenarioFile) -> Result<()> {
     c.non_negative("sensors.derivative_cutoff_hz", f.sensors.derivative_cutoff_hz)?;
     for info in crate::sensors::CHANNELS {
-        let (key, ch) = (format!("sensors.{}", info.name), f.sensors.channel(info.id));
-        c.non_negative(&format!("{key}.noise_std"), ch.noise_std)?;
-        if let Some(r) = ch.range {
-            c.positive(&format!("{key}.range"), r)?;
-        }
-        if ch.bits.is_some_and(|b| b == 0 || b > 52) {
-            return Err(c.fail(
-                &format!("{key}.bits"),
-                "must be 1..=52 (leave it out for the preset's; sensors.preset = \"ideal\" quantises nothing)",
-            ));
-        }
-        if ch.range.is_some() && ch.bits.is_none() && f.sensors.preset.bits().is_none() {
-            return Err(c.fail(
-                &format!("{key}.range"),
-                format!("has no effect without quantisation: set {key}.bits or a quantising sensors.preset (\"adc16\", \"adc32\")"),
-            ));
-        }
+        let key = format!("sensors.{}", info.name);
+        channel_params(c, f, &key, f.sensors.channel(info.id), false)?;
     }
+    device_sensors(c, f)?;
     for (key, ch) in
         [("sensors.force", &f.sensors.force), ("sensors.piston", &f.sensors.piston), ("sensors.knee", &f.sensors.knee)]
     {

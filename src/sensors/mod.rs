@@ -12,7 +12,9 @@
 //! differences. x2 is never rebuilt from the nominal model (that would hide exactly the
 //! disturbances the observer exists to see).
 
+mod device;
 mod hold;
+pub use device::*;
 pub use hold::*;
 
 use rand::SeedableRng;
@@ -31,15 +33,41 @@ pub enum SensorPreset {
     Adc32,
     /// 16-bit converters (a realistic embedded board).
     Adc16,
+    /// Every sensor with figures from typical datasheets (README, "The device's sensors"):
+    /// noise, bias, scale errors, resolution, rates.
+    Device,
 }
 
 impl SensorPreset {
-    /// Bits of the preset (None = no quantisation).
+    /// Bits of the preset for every channel (None = no quantisation, or per channel: `device`).
     pub fn bits(&self) -> Option<u32> {
         match self {
-            SensorPreset::Ideal => None,
+            SensorPreset::Ideal | SensorPreset::Device => None,
             SensorPreset::Adc32 => Some(32),
             SensorPreset::Adc16 => Some(16),
+        }
+    }
+
+    /// Whether the preset quantises (every channel, or per channel).
+    pub fn quantises(&self) -> bool {
+        *self != SensorPreset::Ideal
+    }
+
+    /// The preset's noise standard deviation (channel unit) and bits of a force-loop channel.
+    pub fn channel_figures(&self, c: ChannelId) -> (f64, Option<u32>) {
+        match self {
+            SensorPreset::Device => match c {
+                // A 5 kN load cell on a 16-bit converter, 0.02 % FS noise.
+                ChannelId::Force => (1.0, Some(16)),
+                // The valve's LVDT, 16 bits.
+                ChannelId::Spool => (1e-6, Some(16)),
+                // A magnetostrictive position sensor, 16 bits.
+                ChannelId::Piston => (1e-5, Some(16)),
+                // A 14-bit magnetic encoder (AS5047P class): quantisation only.
+                ChannelId::Knee => (0.0, Some(device_preset::ENCODER_BITS)),
+                ChannelId::PistonVelocity => (1e-3, Some(16)),
+            },
+            _ => (0.0, self.bits()),
         }
     }
 }
@@ -52,8 +80,9 @@ pub struct ChannelParams {
     /// be switched off: without the spool sensor `dtznn` estimates the spool from its commands;
     /// without the velocity sensor the velocity is the filtered difference of the position.
     pub enabled: bool,
-    /// Standard deviation of additive Gaussian noise (channel unit). Default 0. >= 0.
-    pub noise_std: f64,
+    /// Standard deviation of additive Gaussian noise (channel unit). Default: the preset's (0
+    /// but for `device`). >= 0.
+    pub noise_std: Option<f64>,
     /// A/D resolution in bits; absent = the preset's. 0 = no quantisation.
     pub bits: Option<u32>,
     /// Full scale: readings are clamped to and quantised over [-range, +range] (channel
@@ -65,7 +94,7 @@ pub struct ChannelParams {
 
 impl Default for ChannelParams {
     fn default() -> Self {
-        Self { enabled: true, noise_std: 0.0, bits: None, range: None }
+        Self { enabled: true, noise_std: None, bits: None, range: None }
     }
 }
 
@@ -172,7 +201,8 @@ impl AdcCounts {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorParams {
-    /// Quantisation preset: `ideal` (default), `adc32`, `adc16`.
+    /// Preset: `ideal` (default), `adc32`, `adc16` (quantisation of every channel) or
+    /// `device` (datasheet figures for every sensor).
     pub preset: SensorPreset,
     /// Measurement delay in whole samples. Default 0.
     pub delay_samples: usize,
@@ -188,6 +218,26 @@ pub struct SensorParams {
     pub knee: ChannelParams,
     /// Piston velocity sensor (m/s).
     pub piston_velocity: ChannelParams,
+    /// Hip encoder (rad): the thigh relative to the pelvis.
+    pub hip: ChannelParams,
+    /// The thigh's IMU.
+    pub thigh_imu: ImuParams,
+    /// The shank's IMU.
+    pub shank_imu: ImuParams,
+    /// The heel and forefoot force sensors and the foot switch.
+    pub foot: FootParams,
+    /// The thigh cuff's force sensor (N).
+    pub thigh_cuff: ChannelParams,
+    /// The shank cuff's force sensor (N).
+    pub shank_cuff: ChannelParams,
+    /// Chamber A (cap side) pressure transducer (Pa).
+    pub pressure_a: ChannelParams,
+    /// Chamber B (rod side) pressure transducer (Pa).
+    pub pressure_b: ChannelParams,
+    /// Supply pressure transducer (Pa).
+    pub supply_pressure: ChannelParams,
+    /// Load pressure (Pa): a differential transducer across the cylinder, `F_L / A_eff`.
+    pub load_pressure: ChannelParams,
 }
 
 impl Default for SensorParams {
@@ -201,6 +251,16 @@ impl Default for SensorParams {
             piston: ChannelParams::default(),
             knee: ChannelParams::default(),
             piston_velocity: ChannelParams::default(),
+            hip: ChannelParams::default(),
+            thigh_imu: ImuParams::default(),
+            shank_imu: ImuParams::default(),
+            foot: FootParams::default(),
+            thigh_cuff: ChannelParams::default(),
+            shank_cuff: ChannelParams::default(),
+            pressure_a: ChannelParams::default(),
+            pressure_b: ChannelParams::default(),
+            supply_pressure: ChannelParams::default(),
+            load_pressure: ChannelParams::default(),
         }
     }
 }
@@ -214,7 +274,8 @@ impl SensorParams {
             || CHANNELS
                 .iter()
                 .map(|c| self.channel(c.id))
-                .any(|c| c.noise_std > 0.0 || c.bits.unwrap_or(0) > 0 || !c.enabled)
+                .any(|c| c.noise_std.unwrap_or(0.0) > 0.0 || c.bits.unwrap_or(0) > 0 || !c.enabled)
+            || self.device_has_effects()
     }
 
     /// The settings of one channel.
@@ -233,14 +294,14 @@ impl SensorParams {
     pub fn reading_sd(&self, c: ChannelId) -> Option<f64> {
         let p = self.channel(c);
         p.enabled.then(|| {
-            let adc = Adc::new(p, self.preset, CHANNELS[c as usize].default_range);
+            let adc = Adc::new(p, self.preset, c);
             (adc.noise_std * adc.noise_std + adc.lsb * adc.lsb / 12.0).sqrt()
         })
     }
 
     /// The quantisation step (LSB, channel unit) of a channel; None without quantisation.
     pub fn lsb(&self, c: ChannelId) -> Option<f64> {
-        let adc = Adc::new(self.channel(c), self.preset, CHANNELS[c as usize].default_range);
+        let adc = Adc::new(self.channel(c), self.preset, c);
         (adc.lsb > 0.0).then_some(adc.lsb)
     }
 }
@@ -276,11 +337,12 @@ struct Adc {
 }
 
 impl Adc {
-    fn new(c: &ChannelParams, preset: SensorPreset, default_range: f64) -> Self {
-        let bits = c.bits.or(preset.bits()).unwrap_or(0);
-        let range = c.range.unwrap_or(default_range);
+    fn new(c: &ChannelParams, preset: SensorPreset, id: ChannelId) -> Self {
+        let (noise, preset_bits) = preset.channel_figures(id);
+        let bits = c.bits.or(preset_bits).unwrap_or(0);
+        let range = c.range.unwrap_or(CHANNELS[id as usize].default_range);
         let lsb = if bits == 0 { 0.0 } else { 2.0 * range / 2f64.powi(bits as i32) };
-        Self { noise_std: c.noise_std, lsb, range }
+        Self { noise_std: c.noise_std.unwrap_or(noise), lsb, range }
     }
 
     /// A reading, whether it clipped at the full scale, and its A/D counts (None without
@@ -304,6 +366,16 @@ impl Adc {
     }
 }
 
+/// The firmware differences' low-pass at `cutoff_hz` (0: none) sampled every `period_s`:
+/// the exact discretisation of a first-order low-pass, `alpha = 1 - exp(-2 pi fc Ts)`.
+pub fn derivative_alpha(cutoff_hz: f64, period_s: f64) -> f64 {
+    if cutoff_hz > 0.0 {
+        1.0 - (-std::f64::consts::TAU * cutoff_hz * period_s).exp()
+    } else {
+        1.0
+    }
+}
+
 /// The sampled sensor chain. Holds the previous samples for the differences and the delay line.
 #[derive(Debug, Clone)]
 pub struct SampledSensors {
@@ -324,16 +396,11 @@ pub struct SampledSensors {
 impl SampledSensors {
     /// Sensors sampled every `period_s` seconds, noise drawn from a stream seeded by `seed`.
     pub fn new(p: &SensorParams, period_s: f64, seed: u64) -> Self {
-        // Exact discretisation of a first-order low-pass: alpha = 1 - exp(-2*pi*fc*Ts).
-        let alpha = if p.derivative_cutoff_hz > 0.0 {
-            1.0 - (-std::f64::consts::TAU * p.derivative_cutoff_hz * period_s).exp()
-        } else {
-            1.0
-        };
+        let alpha = derivative_alpha(p.derivative_cutoff_hz, period_s);
         Self {
             period_s,
             alpha,
-            adc: CHANNELS.map(|c| Adc::new(p.channel(c.id), p.preset, c.default_range)),
+            adc: CHANNELS.map(|c| Adc::new(p.channel(c.id), p.preset, c.id)),
             enabled: CHANNELS.map(|c| p.channel(c.id).enabled),
             clipped: [0; 5],
             rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5E45_0125),
@@ -414,7 +481,7 @@ mod tests {
         assert!(((ys[3] / lsb) - (ys[3] / lsb).round()).abs() < 1e-9);
 
         let mut p = SensorParams::default();
-        p.force.noise_std = 2.0;
+        p.force.noise_std = Some(2.0);
         let mut s = SampledSensors::new(&p, 1e-3, 7);
         let xs: Vec<f64> = (0..20000).map(|_| s.sample(&Measurement::default()).0.force_n).collect();
         let sd = (xs.iter().map(|x| x * x).sum::<f64>() / xs.len() as f64).sqrt();

@@ -56,7 +56,7 @@ use crate::hydraulics::ActuatorMode;
 use crate::plant::{Bench, LegPlant, PistonPredictor, Plant, PlantInputs, ReducedLegPlant, WalkerPlant};
 use crate::plant::{PlantSetup, CONTACT_MARGIN};
 use crate::record::{Layout, RecordSink, Row};
-use crate::sensors::{SampledSensors, ZeroOrderHold};
+use crate::sensors::{DeviceSensors, SampledSensors, ZeroOrderHold};
 use stage::{Dynamics, Extra, ExtraMut, MAX_MECH};
 use std::sync::Arc;
 
@@ -89,6 +89,8 @@ pub(crate) struct Held {
 struct SampledLoop {
     ctrl: Option<Box<dyn DiscreteController>>,
     sensors: SampledSensors,
+    /// The device's own sensors.
+    device: Option<DeviceSensors>,
     hold: ZeroOrderHold<ControlOutput>,
     /// The step whose sample was taken and still needs its command (`hold`).
     awaiting: Option<usize>,
@@ -249,6 +251,7 @@ impl Simulation {
             knee_reference: self.sc.reference.knee_at(0.0).is_some(),
             leg: self.plant.leg_row().is_some(),
             contact: self.plant.contact_row().is_some(),
+            device: self.sc.device_columns,
             log: self.log_names(),
         }
     }
@@ -392,8 +395,13 @@ impl Simulation {
         let (x, dx) = (Extra { mech: &self.mech_state, ctrl: &[] }, self.mech_scratch(&mut dmech));
         let s0 = d.evaluate(t, &self.state, x, dx, self.plant.as_ref(), &self.held);
         let truth = d.truth(&self.state, &self.mech_state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held);
+        let device_truth = self.device_truth(t, s0.force_rate_n_per_s);
         let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
         let (y, counts) = l.sensors.sample(&truth);
+        let (device, device_counts) = match (&mut l.device, device_truth) {
+            (Some(dev), Some(dt)) => dev.sample(&dt),
+            _ => Default::default(),
+        };
         l.sampled = Some(self.k);
         l.awaiting = Some(self.k);
         // The outer loop compares each reading with the reference at the reading's time,
@@ -411,7 +419,31 @@ impl Simulation {
         self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, knee_rate, self.held.knee_integral_rad_s);
         let r = d.reference_at(t, &self.held);
         let r_next = d.reference_at(t + period, &self.held);
-        Ok(SampleInput { t_s: t, period_s: period, y, counts, r, r_next, valve_limit: self.sc.valve_limit })
+        Ok(SampleInput {
+            t_s: t,
+            period_s: period,
+            y,
+            counts,
+            device,
+            device_counts,
+            r,
+            r_next,
+            valve_limit: self.sc.valve_limit,
+        })
+    }
+
+    /// What the device's sensors measure now (at `t`, the load cell's rate
+    /// `force_rate_n_per_s`), when the run has them: the same truth the row's device columns
+    /// record.
+    fn device_truth(&self, t: f64, force_rate_n_per_s: f64) -> Option<crate::sensors::DeviceTruth> {
+        self.sc.device.as_ref()?;
+        let d = self.dynamics();
+        let plant = self.plant.as_ref();
+        let v = plant.piston_at(t).velocity_m_s;
+        let f = d.cylinder_force(&self.state, v, &d.reference_at(t, &self.held));
+        let arm = plant.leg_row().map_or(0.0, |l| l.moment_arm_m);
+        let w1 = self.interaction(t, force_rate_n_per_s);
+        Some(d.device_truth(&self.state, plant, f, arm, w1, true))
     }
 
     /// Step 2 of a sampled step: hold the controller's output (clipped to the valve limit, and
@@ -817,6 +849,10 @@ impl SampledLoop {
         Self {
             ctrl,
             sensors: SampledSensors::new(&sc.sensors, sc.sample_period_s, sc.seed),
+            device: sc.device.clone().map(|d| {
+                let alpha = crate::sensors::derivative_alpha(sc.sensors.derivative_cutoff_hz, sc.sample_period_s);
+                DeviceSensors::new(d, sc.sample_period_s, sc.sensors.delay_samples, alpha, sc.seed)
+            }),
             hold: ZeroOrderHold::new(every, ControlOutput::default()),
             awaiting: None,
             sampled: None,

@@ -55,6 +55,11 @@ pub struct Model {
     pub disturbance: Disturbances,
     /// Sensors (sampled mode).
     pub sensors: SensorParams,
+    /// The device's own sensors as the chain runs them (sampled mode; None for a continuous
+    /// controller).
+    pub device: Option<crate::sensors::DeviceSetup>,
+    /// The time series carries the device's columns (leg runs with a sampled controller).
+    pub device_columns: bool,
     /// Metric settings.
     pub metrics: MetricSettings,
 }

@@ -7,7 +7,8 @@ use crate::disturbance::{CHANNEL_FORCE_ACCEL, CHANNEL_FORCE_RATE, CHANNEL_SPOOL}
 use crate::human::HumanMode;
 use crate::hydraulics::{ActuatorMode, ForceChannelInput, ForceRates, ForceSource, PistonKinematics};
 use crate::plant::{CoupledMechanics, CoupledStage, PistonMotion, PistonPredictor, Plant, StageInputs};
-use crate::record::Row;
+use crate::record::{DeviceRow, Row};
+use crate::sensors::DeviceTruth;
 use crate::reference::RefSample;
 use crate::sensors::Measurement;
 
@@ -329,11 +330,87 @@ impl Dynamics<'_> {
         }
     }
 
+    /// What the device's sensors measure at state `s` with the net cylinder force
+    /// `cylinder_force_n` (N) on the moment arm `arm_m` (m/rad) and the interaction force `w1`;
+    /// the segments' kinematics only with `kinematics`.
+    ///
+    /// The cuffs carry the device's knee moment `M = -F_cyl dL/dq` (extensor positive) over
+    /// their lever arms about the knee (the exoskeleton's frames strapped to the limb at one
+    /// cuff each, their own inertia neglected: an extensor moment presses both cuffs
+    /// forward, the knee back), and the shank cuff the human's interaction force w1 of
+    /// `human.mode = "cuff"` (applied there, forward when it extends the knee).
+    pub fn device_truth(
+        &self,
+        s: &State,
+        plant: &dyn Plant,
+        cylinder_force_n: f64,
+        arm_m: f64,
+        w1: f64,
+        kinematics: bool,
+    ) -> DeviceTruth {
+        let cyl = &self.sc.cylinder;
+        let (pressure_a_pa, pressure_b_pa) = cyl.pressures_pa(&s.hyd);
+        let leg = self.sc.leg();
+        let (thigh, shank) = leg.map_or((f64::NAN, f64::NAN), |l| {
+            let m = -cylinder_force_n * arm_m;
+            let w = if self.sc.human.mode == HumanMode::Cuff { arm_m.signum() * w1 } else { 0.0 };
+            (m / l.cuff_lever_m.0, m / l.cuff_lever_m.1 + w)
+        });
+        DeviceTruth {
+            leg: if kinematics { plant.leg_kinematics() } else { None },
+            foot: leg.map(|_| plant.foot_load().unwrap_or_default()),
+            thigh_cuff_force_n: thigh,
+            shank_cuff_force_n: shank,
+            pressure_a_pa,
+            pressure_b_pa,
+            supply_pressure_pa: cyl.supply_return_pa.0,
+            load_pressure_pa: cyl.load_pressure_pa(&s.hyd),
+        }
+    }
+
+    /// The device's row from its truth `d` at state `s`, with the device moment of
+    /// `cylinder_force_n` on `arm_m`.
+    fn device_row(&self, d: &DeviceTruth, s: &State, cylinder_force_n: f64, arm_m: f64) -> DeviceRow {
+        let (heel, fore) = match (&d.foot, &self.sc.device) {
+            (Some(f), Some(dev)) => f.split(dev.foot_x_m.0, dev.foot_x_m.1),
+            _ => (f64::NAN, f64::NAN),
+        };
+        let seg = |f: fn(&crate::sensors::LegKinematics) -> crate::sensors::SegmentState| {
+            d.leg.as_ref().map_or((f64::NAN, f64::NAN), |l| {
+                let g = f(l);
+                (g.angle_rad().to_degrees(), -g.omega_rad_s.to_degrees())
+            })
+        };
+        let ((ta, tr), (sa, sr)) = (seg(|l| l.thigh), seg(|l| l.shank));
+        let cyl = &self.sc.cylinder;
+        DeviceRow {
+            thigh_angle_deg: ta,
+            shank_angle_deg: sa,
+            thigh_rate_deg_s: tr,
+            shank_rate_deg_s: sr,
+            heel_force_n: heel,
+            forefoot_force_n: fore,
+            thigh_cuff_force_n: d.thigh_cuff_force_n,
+            shank_cuff_force_n: d.shank_cuff_force_n,
+            pressure_a_pa: d.pressure_a_pa,
+            pressure_b_pa: d.pressure_b_pa,
+            load_pressure_pa: d.load_pressure_pa,
+            hydraulic_power_w: d.supply_pressure_pa * cyl.supply_flow_m3_s(&s.hyd),
+            device_knee_moment_nm: -cylinder_force_n * arm_m,
+        }
+    }
+
     /// The row of state `s` at `t`, with the stage `st` evaluated there and the interaction
     /// force `w1`.
     pub fn row(&self, t: f64, s: &State, st: &Stage, w1: f64, plant: &dyn Plant, held: &Held) -> Row {
         let r = self.reference_at(t, held);
         let p = plant.piston_at(t);
+        let leg = plant.leg_row();
+        let cylinder_force_n = self.cylinder_force(s, p.velocity_m_s, &r);
+        let device = leg.map(|l| {
+            let truth = self.device_truth(s, plant, cylinder_force_n, l.moment_arm_m, w1, self.sc.device_columns);
+            self.device_row(&truth, s, cylinder_force_n, l.moment_arm_m)
+        });
         Row {
             t_s: t,
             ref_force_n: r.value,
@@ -348,14 +425,15 @@ impl Dynamics<'_> {
             piston_m: p.position_m,
             piston_velocity_m_s: p.velocity_m_s,
             friction_force_n: self.sc.friction.force_n(p.velocity_m_s),
-            cylinder_force_n: self.cylinder_force(s, p.velocity_m_s, &r),
+            cylinder_force_n,
             interaction_force: w1,
             disturbance_estimate_n_per_s2: st.out.disturbance_estimate_n_per_s2,
             rbf_output_n_per_s2: st.out.rbf_output_n_per_s2,
             lumped_disturbance_n_per_s2: st.lumped_n_per_s2,
             ref_knee_deg: self.sc.reference.knee_at(t).map(|k| k.value.to_degrees()),
-            leg: plant.leg_row(),
+            leg,
             contact: plant.contact_row(),
+            device,
             log: Default::default(),
         }
     }

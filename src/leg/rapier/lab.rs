@@ -63,6 +63,24 @@ impl Leg {
         self.lab_knee_moment_nm
     }
 
+    /// A link frame's planar state for the device's sensors: its origin (m, world x and z),
+    /// its turn about world +y (cos, sin), the origin's velocity (m/s) and the angular
+    /// velocity about +y (rad/s).
+    pub fn link_planar_state(&self, link: usize) -> crate::sensors::SegmentState {
+        let rb = &self.world.bodies[self.link_body[link]];
+        let pose = *rb.position() * self.link_offset[link];
+        let o = pose.translation;
+        let x_axis = pose.rotation * DVec3::X;
+        let (w, cb) = (rb.angvel(), rb.center_of_mass());
+        let v = rb.linvel() + w.cross(o - cb);
+        crate::sensors::SegmentState {
+            origin_m: [o.x, o.z],
+            cos_sin: (x_axis.x, -x_axis.z),
+            velocity_m_s: [v.x, v.z],
+            omega_rad_s: w.y,
+        }
+    }
+
     /// Total linear momentum of every body (kg m/s, world x and z).
     pub fn momentum(&self) -> [f64; 2] {
         let mut p = DVec3::ZERO;
