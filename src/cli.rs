@@ -179,21 +179,28 @@ fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
         f.plant.kind,
         f.hydraulics.model
     );
-    println!("max |F_L - F_d|     {:.4} N", m.max_abs_force_error_n);
-    println!(
-        "convergence time    {} (band {:.3} N)",
-        m.force_convergence_time_s.map_or("never".into(), |t| format!("{t:.4} s")),
-        m.force_convergence_band_n
-    );
-    println!("RMS error           {:.4} N", m.rms_force_error_n);
-    if m.settle_s > 0.0 {
+    if sc.model.desired_force {
+        println!("max |F_L - F_d|     {:.4} N", m.max_abs_force_error_n);
         println!(
-            "after {:.3} s        force RMS {:.4} N, max {:.4} N",
-            m.settle_s, m.rms_force_error_after_settle_n, m.max_abs_force_error_after_settle_n
+            "convergence time    {} (band {:.3} N)",
+            m.force_convergence_time_s.map_or("never".into(), |t| format!("{t:.4} s")),
+            m.force_convergence_band_n
         );
+        println!("RMS error           {:.4} N", m.rms_force_error_n);
+        if m.settle_s > 0.0 {
+            println!(
+                "after {:.3} s        force RMS {:.4} N, max {:.4} N",
+                m.settle_s, m.rms_force_error_after_settle_n, m.max_abs_force_error_after_settle_n
+            );
+        }
+    } else {
+        println!("desired force       none (reference.force = \"none\": the controller decides the assistance)");
     }
     if let (Some(r), Some(x)) = (m.knee_rms_error_deg, m.knee_max_abs_error_deg) {
         println!("knee error          RMS {r:.4} deg, max {x:.4} deg");
+    }
+    if let Some(w) = &m.wearer {
+        print_wearer(w);
     }
     println!("max |u|             {:.4e}", m.max_abs_valve_command);
     println!(
@@ -209,6 +216,46 @@ fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
         );
     }
     println!("outputs             {}", out.display());
+}
+
+/// What the wearer got (walking runs).
+fn print_wearer(w: &crate::metrics::WearerSummary) {
+    let share = |s: Option<f64>| s.map_or("-".into(), |s| format!("{:.0} %", 100.0 * s));
+    let phases: Vec<String> = w.phases.iter().map(|p| format!("{} {}", p.phase, share(p.device_share))).collect();
+    println!("device share        {} (stance {})", phases.join(", "), share(w.stance_device_share));
+    println!(
+        "device work         +{:.2} J / {:.2} J per stride; hydraulic energy {:.1} J per stride ({:.0} W mean)",
+        w.positive_work_per_stride_j,
+        w.negative_work_per_stride_j,
+        w.hydraulic_energy_per_stride_j,
+        w.hydraulic_power_mean_w
+    );
+    println!(
+        "cuffs               thigh peak {:.0} N RMS {:.0} N ({}), shank peak {:.0} N RMS {:.0} N ({}); limits comfort {:.0} N, pain {:.0} / {:.0} N",
+        w.thigh_cuff.peak_n,
+        w.thigh_cuff.rms_n,
+        w.thigh_cuff.verdict,
+        w.shank_cuff.peak_n,
+        w.shank_cuff.rms_n,
+        w.shank_cuff.verdict,
+        w.thigh_cuff.limits_n[0],
+        w.thigh_cuff.limits_n[1],
+        w.shank_cuff.limits_n[1]
+    );
+    println!(
+        "knee range          {:.1}..{:.1} deg (the wearer's data {:.1}..{:.1} deg)",
+        w.knee_range_deg[0], w.knee_range_deg[1], w.data_knee_range_deg[0], w.data_knee_range_deg[1]
+    );
+    if let Some(p) = &w.phase_estimate {
+        let ms = |x: Option<f64>| x.map_or("-".into(), |x| format!("{:.1} ms", 1e3 * x));
+        println!(
+            "gait phase (logged) heel strikes detected {} of {}, median latency {}, phase RMSE {}",
+            p.detected,
+            p.heel_strikes,
+            ms(p.median_latency_s),
+            p.phase_rmse_pct.map_or("-".into(), |e| format!("{e:.2} %"))
+        );
+    }
 }
 
 /// The warnings of a study's base scenario, once (a file changed since a recorded run, ...);

@@ -5,7 +5,7 @@
 
 use crate::control::{ControlOutput, SampleInput};
 use crate::error::Result;
-use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics};
+use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics, WearerMetrics};
 use crate::record::{Layout, MemoryRecord, RecordSink, Row, MAX_LOGGED};
 use crate::sim::{Model, Simulation};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -17,18 +17,21 @@ struct Fan<'a, S: RecordSink + ?Sized> {
     metrics: &'a mut SummaryBuilder,
     sink: &'a mut S,
     walking: Option<&'a mut WalkingMetrics>,
+    wearer: Option<&'a mut WearerMetrics>,
 }
 
 impl<S: RecordSink + ?Sized> RecordSink for Fan<'_, S> {
     fn start(&mut self, layout: &Layout) -> Result<()> {
         self.metrics.start(layout)?;
         self.sink.start(layout)?;
-        self.walking.as_mut().map_or(Ok(()), |w| w.start(layout))
+        self.walking.as_mut().map_or(Ok(()), |w| w.start(layout))?;
+        self.wearer.as_mut().map_or(Ok(()), |w| w.start(layout))
     }
     fn row(&mut self, row: &Row) -> Result<()> {
         self.metrics.row(row)?;
         self.sink.row(row)?;
-        self.walking.as_mut().map_or(Ok(()), |w| w.row(row))
+        self.walking.as_mut().map_or(Ok(()), |w| w.row(row))?;
+        self.wearer.as_mut().map_or(Ok(()), |w| w.row(row))
     }
 }
 
@@ -47,6 +50,7 @@ pub struct Session<S: RecordSink> {
     sim: Simulation,
     metrics: SummaryBuilder,
     walking: Option<WalkingMetrics>,
+    wearer: Option<WearerMetrics>,
     sink: S,
     /// Time spent simulating (s), for `steps_per_second`.
     wall: Duration,
@@ -66,14 +70,14 @@ impl<S: RecordSink> Session<S> {
         let sc = sim.model().clone();
         let layout = sim.layout();
         let metrics = SummaryBuilder::new(sc.metrics);
-        let walking = layout.contact.then(|| {
-            let data = sc.leg().and_then(|l| l.body.as_ref()).and_then(|b| match &b.targets {
-                crate::human::BodyTargets::Walking(w) => Some(w.clone()),
-                crate::human::BodyTargets::Pose(_) => None,
-            });
-            WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data)
+        let data = sc.leg().and_then(|l| l.body.as_ref()).and_then(|b| match &b.targets {
+            crate::human::BodyTargets::Walking(w) => Some(w.clone()),
+            crate::human::BodyTargets::Pose(_) => None,
         });
-        Ok(Self { sim, metrics, walking, sink, wall: Duration::ZERO, started: false, cancel: None })
+        let walking =
+            layout.contact.then(|| WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data.clone()));
+        let wearer = data.filter(|_| layout.contact).map(|d| WearerMetrics::new(sc.metrics.settle_s, d, sc.cuff_limits));
+        Ok(Self { sim, metrics, walking, wearer, sink, wall: Duration::ZERO, started: false, cancel: None })
     }
 
     /// Stop [`Self::run_to_end`] with [`crate::Error::Interrupted`] when `flag` is set.
@@ -104,7 +108,12 @@ impl<S: RecordSink> Session<S> {
                 layout.log.len()
             )));
         }
-        Fan { metrics: &mut self.metrics, sink: &mut self.sink, walking: self.walking.as_mut() }.start(&layout)?;
+        Fan {
+            metrics: &mut self.metrics,
+            sink: &mut self.sink,
+            walking: self.walking.as_mut(),
+            wearer: self.wearer.as_mut(),
+        }.start(&layout)?;
         self.started = true;
         Ok(())
     }
@@ -112,7 +121,12 @@ impl<S: RecordSink> Session<S> {
     /// One fixed step into the sinks (untimed).
     fn advance_inner(&mut self) -> Result<()> {
         self.ensure_started()?;
-        let mut fan = Fan { metrics: &mut self.metrics, sink: &mut self.sink, walking: self.walking.as_mut() };
+        let mut fan = Fan {
+            metrics: &mut self.metrics,
+            sink: &mut self.sink,
+            walking: self.walking.as_mut(),
+            wearer: self.wearer.as_mut(),
+        };
         self.sim.advance(&mut fan)
     }
 
@@ -166,13 +180,19 @@ impl<S: RecordSink> Session<S> {
     pub fn finish(mut self) -> Result<Finished<S>> {
         self.timed(|s| {
             s.ensure_started()?;
-            let mut fan = Fan { metrics: &mut s.metrics, sink: &mut s.sink, walking: s.walking.as_mut() };
+            let mut fan = Fan {
+                metrics: &mut s.metrics,
+                sink: &mut s.sink,
+                walking: s.walking.as_mut(),
+                wearer: s.wearer.as_mut(),
+            };
             s.sim.finish(&mut fan)
         })?;
         let sim = &self.sim;
         let sc = sim.model();
         let mut summary = self.metrics.finish(self.wall.as_secs_f64());
         summary.contact = self.walking.map(|w| w.finish());
+        summary.wearer = self.wearer.and_then(|w| w.finish());
         summary.engine =
             sc.leg().map(|l| if l.reduced.is_some() || l.walker.is_some() { "reduced" } else { "rapier" }.to_string());
         (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();

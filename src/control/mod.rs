@@ -82,6 +82,12 @@ impl ControllerKind {
     pub fn sampled_only(&self) -> bool {
         matches!(self, ControllerKind::Dtznn | ControllerKind::Plugin)
     }
+
+    /// Whether the controller tracks a desired force (every built-in one but `open_loop`; a
+    /// plugin decides for itself).
+    pub fn needs_reference(&self) -> bool {
+        !matches!(self, ControllerKind::OpenLoop | ControllerKind::Plugin)
+    }
 }
 
 /// `[controller]`.
@@ -241,6 +247,11 @@ impl ControllerSetup {
                 ControllerSetup::Plugin(Arc::new(plugin::PluginSetup::new(lib, &p.plugin, info)?))
             }
         })
+    }
+
+    /// Whether the controller tracks a desired force (see [`ControllerKind::needs_reference`]).
+    pub fn needs_reference(&self) -> bool {
+        !matches!(self, ControllerSetup::OpenLoop { .. } | ControllerSetup::Plugin(_))
     }
 
     /// The continuous-time controller of this setup with its nominal model (`dtznn` and

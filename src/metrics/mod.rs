@@ -3,7 +3,9 @@
 //! constant memory for its figures. Used by the CLI, the studies and the tests.
 
 pub mod walking;
+pub mod wearer;
 pub use walking::{ContactSummary, DatasetComparison, WalkingMetrics};
+pub use wearer::{CuffLimits, WearerMetrics, WearerSummary};
 
 use crate::error::Result;
 use crate::record::{Layout, RecordSink, Row};
@@ -46,6 +48,29 @@ pub struct MetricSettings {
     pub settle_s: f64,
     /// Stride time of a gait reference (s), for per-stride figures.
     pub stride_s: Option<f64>,
+    /// The run has a desired force (`reference.force = "computed"`); without one the force
+    /// figures are NaN (null in `summary.json`).
+    pub force_reference: bool,
+}
+
+/// A figure that a run may not have (the force errors of a run without a desired force):
+/// NaN in Rust, `null` in JSON.
+pub mod nan_null {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    /// NaN as `null`, else the number.
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_nan() {
+            s.serialize_none()
+        } else {
+            s.serialize_f64(*v)
+        }
+    }
+
+    /// `null` as NaN.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
 }
 
 /// Figures of one stride of a gait run (errors over the whole stride).
@@ -60,8 +85,10 @@ pub struct StrideFigures {
     /// max |knee angle - desired| (deg).
     pub knee_max_abs_error_deg: f64,
     /// RMS of F_L - F_d (N).
+    #[serde(with = "nan_null")]
     pub force_rms_error_n: f64,
     /// max |F_L - F_d| (N).
+    #[serde(with = "nan_null")]
     pub force_max_abs_error_n: f64,
     /// max |net cylinder force| (N).
     pub peak_cylinder_force_n: f64,
@@ -74,18 +101,23 @@ pub struct StrideFigures {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     /// max |F_L - F_d| over the run (N).
+    #[serde(with = "nan_null")]
     pub max_abs_force_error_n: f64,
     /// Earliest t after which |F_L - F_d| stays within the band (s); null if never.
     pub force_convergence_time_s: Option<f64>,
     /// The band used for the convergence time (N).
+    #[serde(with = "nan_null")]
     pub force_convergence_band_n: f64,
     /// RMS of F_L - F_d over the run (N).
+    #[serde(with = "nan_null")]
     pub rms_force_error_n: f64,
     /// Settling window excluded from the figures "after settle" (s).
     pub settle_s: f64,
     /// max |F_L - F_d| after the settling window (N).
+    #[serde(with = "nan_null")]
     pub max_abs_force_error_after_settle_n: f64,
     /// RMS of F_L - F_d after the settling window (N).
+    #[serde(with = "nan_null")]
     pub rms_force_error_after_settle_n: f64,
     /// max |u| (valve command).
     pub max_abs_valve_command: f64,
@@ -138,6 +170,9 @@ pub struct Summary {
     /// Samples a controller flagged with a warning (a C plugin's warning status), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub controller_warnings: Option<ControllerWarnings>,
+    /// What the wearer got (walking runs; see [`wearer`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wearer: Option<WearerSummary>,
     /// Ground-contact figures (runs with `ground.enabled`), flattened into the summary.
     #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
     pub contact: Option<ContactSummary>,
@@ -174,7 +209,8 @@ impl Summary {
             ("loop_closure_max_gap_m", self.loop_closure_max_gap_m.unwrap_or(0.0)),
         ];
         for (name, v) in non_negative {
-            if !(v.is_finite() && v >= 0.0) {
+            // NaN: a figure the run does not have (no desired force).
+            if !(v.is_nan() || (v.is_finite() && v >= 0.0)) {
                 return Err(format!("{name} = {v}: a maximum, RMS, peak or time is finite and >= 0"));
             }
         }
@@ -250,6 +286,10 @@ impl Metric {
 
     /// The value in a summary (None when the run has no such figure).
     pub fn value(&self, s: &Summary) -> Option<f64> {
+        self.raw(s).filter(|v| !v.is_nan())
+    }
+
+    fn raw(&self, s: &Summary) -> Option<f64> {
         match self {
             Metric::MaxAbsForceError => Some(s.max_abs_force_error_n),
             Metric::RmsForceError => Some(s.rms_force_error_n),
@@ -440,8 +480,10 @@ impl SummaryBuilder {
     }
 
     fn add_settled(&mut self, r: &Row) {
-        self.settled_max_err.add(r.force_error_n);
-        self.settled_rms_err.add(r.force_error_n);
+        if self.settings.force_reference {
+            self.settled_max_err.add(r.force_error_n);
+            self.settled_rms_err.add(r.force_error_n);
+        }
         if let Some(e) = r.knee_error_deg() {
             self.knee_rms.add(e);
             self.knee_max.add(e);
@@ -485,14 +527,16 @@ impl SummaryBuilder {
         };
         let steps = self.rows.saturating_sub(1);
         let knee = self.has_knee_error;
+        // Without a desired force there is no force error.
+        let f = |v: f64| if self.settings.force_reference { v } else { f64::NAN };
         Summary {
-            max_abs_force_error_n: self.max_err.0,
-            force_convergence_time_s: self.conv.time(band),
-            force_convergence_band_n: band,
-            rms_force_error_n: self.rms_err.value(),
+            max_abs_force_error_n: f(self.max_err.0),
+            force_convergence_time_s: self.conv.time(band).filter(|_| self.settings.force_reference),
+            force_convergence_band_n: f(band),
+            rms_force_error_n: f(self.rms_err.value()),
             settle_s: self.settings.settle_s,
-            max_abs_force_error_after_settle_n: self.settled_max_err.0,
-            rms_force_error_after_settle_n: self.settled_rms_err.value(),
+            max_abs_force_error_after_settle_n: f(self.settled_max_err.0),
+            rms_force_error_after_settle_n: f(self.settled_rms_err.value()),
             max_abs_valve_command: self.max_u.0,
             peak_load_force_n: self.peak_load.0,
             knee_rms_error_deg: knee.then(|| self.knee_rms.value()),
@@ -511,6 +555,7 @@ impl SummaryBuilder {
             wall_time_s,
             steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
             contact: None,
+            wearer: None,
             controller_warnings: None,
             end_stops: None,
             engine: None,
@@ -530,8 +575,8 @@ impl SummaryBuilder {
                 t_start_s: i as f64 * stride,
                 knee_rms_error_deg: a.knee_rms.value(),
                 knee_max_abs_error_deg: a.knee_max.0,
-                force_rms_error_n: a.force_rms.value(),
-                force_max_abs_error_n: a.force_max.0,
+                force_rms_error_n: if self.settings.force_reference { a.force_rms.value() } else { f64::NAN },
+                force_max_abs_error_n: if self.settings.force_reference { a.force_max.0 } else { f64::NAN },
                 peak_cylinder_force_n: a.peak_force.0,
                 peak_power_w: a.peak_power.0,
             })
@@ -548,10 +593,12 @@ impl RecordSink for SummaryBuilder {
     }
 
     fn row(&mut self, r: &Row) -> Result<()> {
-        self.peak_ref.add(r.ref_force_n);
-        self.conv.add(r.t_s, r.force_error_n.abs(), self.band_floor());
-        self.max_err.add(r.force_error_n);
-        self.rms_err.add(r.force_error_n);
+        if self.settings.force_reference {
+            self.peak_ref.add(r.ref_force_n);
+            self.conv.add(r.t_s, r.force_error_n.abs(), self.band_floor());
+            self.max_err.add(r.force_error_n);
+            self.rms_err.add(r.force_error_n);
+        }
         self.max_u.add(r.valve_command);
         self.peak_load.add(r.load_force_n);
         self.saturated.add(if r.valve_saturated { 1.0 } else { 0.0 });
@@ -659,7 +706,7 @@ mod tests {
     }
 
     fn conv(band: Band, errs: &[f64], refs: &[f64]) -> Option<f64> {
-        let mut b = SummaryBuilder::new(MetricSettings { band, settle_s: 0.0, stride_s: None });
+        let mut b = SummaryBuilder::new(MetricSettings { band, settle_s: 0.0, stride_s: None, force_reference: true });
         b.start(&Layout::default()).unwrap();
         for (i, (e, r)) in errs.iter().zip(refs).enumerate() {
             b.row(&row(0.1 * i as f64, *e, *r)).unwrap();

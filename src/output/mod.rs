@@ -11,6 +11,7 @@
 
 pub mod animate;
 mod csv;
+pub mod indicators;
 mod parquet;
 mod plot;
 pub use self::csv::*;

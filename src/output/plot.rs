@@ -199,6 +199,18 @@ fn range(panel: &Panel) -> (f64, f64) {
 /// Draw stacked panels sharing the time axis `t_span` into a PNG at `path` (atomic write);
 /// `shade`: time intervals to shade in every panel (stance phases).
 pub fn stacked_png(path: &Path, title: &str, t_span: (f64, f64), panels: &[Panel], shade: &[(f64, f64)]) -> Result<()> {
+    stacked_png_over(path, title, "time (s)", t_span, panels, shade)
+}
+
+/// [`stacked_png`] over another shared x axis labelled `x_label`.
+pub fn stacked_png_over(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    t_span: (f64, f64),
+    panels: &[Panel],
+    shade: &[(f64, f64)],
+) -> Result<()> {
     ensure_font();
     let (w, h) = (1200u32, 300 * panels.len() as u32 + 60);
     let mut buf = vec![0u8; (w * h * 3) as usize];
@@ -219,7 +231,7 @@ pub fn stacked_png(path: &Path, title: &str, t_span: (f64, f64), panels: &[Panel
                 .map_err(|e| perr(e.to_string()))?;
             chart
                 .configure_mesh()
-                .x_desc("time (s)")
+                .x_desc(x_label)
                 .y_desc(p.y_label)
                 .label_style(("sans-serif", 14))
                 .draw()
@@ -309,6 +321,42 @@ pub fn knee_tracking_png(path: &Path, b: &PlotBuffer, title: &str) -> Result<()>
             Panel { y_label: "force error (N)", series: vec![("F_L - F_d", b.points(FORCE_ERROR), RED)] },
         ],
         &b.stance_intervals(),
+    )
+}
+
+/// What the wearer got over the mean cycle: the device's knee moment against the
+/// biological one, the cuff forces with the comfort limit, the knee angle; the data's stance
+/// (0-62 %) shaded.
+pub fn wearer_png(path: &Path, c: &crate::metrics::wearer::WearerCycle, comfort_n: f64, title: &str) -> Result<()> {
+    let pts = |v: &[f64]| v.iter().enumerate().map(|(i, x)| (i as f64 + 0.5, *x)).collect::<Vec<_>>();
+    let flat = |x: f64| vec![(0.0, x), (100.0, x)];
+    let grey = RGBColor(128, 128, 128);
+    stacked_png_over(
+        path,
+        title,
+        "gait cycle (%, the data's clock)",
+        (0.0, 100.0),
+        &[
+            Panel {
+                y_label: "knee moment (N m, ext +)",
+                series: vec![
+                    ("biological (data)", pts(&c.biological_moment_nm), BLACK),
+                    ("device", pts(&c.device_moment_nm), BLUE),
+                    ("wearer's remaining", pts(&c.biological_moment_nm.iter().zip(&c.device_moment_nm).map(|(b, d)| b - d).collect::<Vec<_>>()), RED),
+                ],
+            },
+            Panel {
+                y_label: "cuff force (N)",
+                series: vec![
+                    ("thigh cuff", pts(&c.thigh_cuff_n), RGBColor(0, 128, 0)),
+                    ("shank cuff", pts(&c.shank_cuff_n), RGBColor(200, 100, 0)),
+                    ("comfort limit", flat(comfort_n), grey),
+                    ("-comfort limit", flat(-comfort_n), grey),
+                ],
+            },
+            Panel { y_label: "knee flexion (deg)", series: vec![("knee", pts(&c.knee_deg), BLUE)] },
+        ],
+        &[(0.0, 62.0)],
     )
 }
 

@@ -79,12 +79,28 @@ pub enum ReferenceKind {
     Pose,
 }
 
+/// Where the desired force comes from (`reference.force`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum DesiredForce {
+    /// exoleg computes it: the sine, or the gait cascade (inverse dynamics + the outer knee
+    /// loop, the stance assistance) for a gait or a pose.
+    #[default]
+    Computed,
+    /// None: the controller decides the assistance itself from the device's sensors; the
+    /// reference readings are NaN and the run is scored by what the wearer gets, not by a
+    /// force error (the wearer still walks the gait data).
+    None,
+}
+
 /// `[reference]`: the desired load force (`sine`) or knee trajectory (`gait`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ReferenceSection {
     /// `sine` (default) or `gait`.
     pub kind: ReferenceKind,
+    /// `computed` (default) or `none`: see [`DesiredForce`].
+    pub force: DesiredForce,
     /// Sine: amplitude of the desired force (N). Default 200. >= 0.
     pub amplitude_n: f64,
     /// Sine: frequency (Hz). Default 2. >= 0.
@@ -139,6 +155,7 @@ impl Default for ReferenceSection {
     fn default() -> Self {
         Self {
             kind: ReferenceKind::Sine,
+            force: DesiredForce::Computed,
             amplitude_n: 200.0,
             frequency_hz: 2.0,
             phase_rad: 0.0,
@@ -244,6 +261,9 @@ pub struct ScenarioFile {
     pub metrics: MetricsSection,
     /// Pass/fail criteria.
     pub criteria: Criteria,
+    /// `[cuff_limits]`: the comfort and pain limits of the cuff interaction forces (the
+    /// wearer's figures of walking runs).
+    pub cuff_limits: crate::metrics::CuffLimits,
     /// What the run records.
     pub output: OutputSection,
     /// The wearer's body: scales the built-in leg and sets the subject's mass.
@@ -305,6 +325,7 @@ impl Default for ScenarioFile {
             wearer: WearerParams::default(),
             metrics: MetricsSection::default(),
             criteria: Criteria::default(),
+            cuff_limits: crate::metrics::CuffLimits::default(),
             output: OutputSection::default(),
             subject: None,
         }

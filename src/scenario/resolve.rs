@@ -682,7 +682,9 @@ impl Scenario {
                 PlantSetup::Leg(Box::new(setup))
             }
         };
+        let desired_force = f.reference.force == crate::scenario::DesiredForce::Computed;
         let knee_pd = match (&reference, &nominal) {
+            _ if !desired_force => None,
             (ForceReference::Gait(_) | ForceReference::Pose { .. }, Some(model)) => Some(KneePd {
                 kp_nm_per_rad: f.reference.knee_kp_nm_per_rad,
                 kd_nm_s_per_rad: f.reference.knee_kd_nm_s_per_rad,
@@ -724,9 +726,15 @@ impl Scenario {
             sample_every,
             sample_period_s: f.controller.sample_period_s,
             plant,
-            metrics: MetricSettings { band, settle_s: f.metrics.settle_s, stride_s: reference.stride_s() },
+            metrics: MetricSettings {
+                band,
+                settle_s: f.metrics.settle_s,
+                stride_s: reference.stride_s(),
+                force_reference: desired_force,
+            },
             reference,
             knee_pd,
+            desired_force,
             cylinder: Cylinder::new(&f.hydraulics, f.actuator.pressure_limit, f.actuator.spool_limit_m),
             controller: cx.controller(nominal)?,
             nominal,
@@ -736,6 +744,7 @@ impl Scenario {
             human: f.human.clone(),
             disturbance: f.disturbance.clone(),
             sensors: f.sensors.clone(),
+            cuff_limits: f.cuff_limits,
         };
         Ok(ResolvedScenario {
             source_name: self.source_name.clone(),

@@ -218,6 +218,33 @@ fn reference(c: &Check, f: &ScenarioFile) -> Result<()> {
     if rf.kind == ReferenceKind::Pose && f.plant.kind != PlantKind::Leg {
         return Err(c.fail("reference.kind", "`pose` holds a knee: it needs plant.kind = \"leg\""));
     }
+    no_desired_force(c, f)
+}
+
+/// `reference.force = "none"`: what needs a desired force is refused, naming it.
+fn no_desired_force(c: &Check, f: &ScenarioFile) -> Result<()> {
+    if f.reference.force != crate::scenario::DesiredForce::None {
+        return Ok(());
+    }
+    let why = "needs the desired force, and reference.force = \"none\" has none";
+    if f.reference.kind == ReferenceKind::Sine {
+        return Err(c.fail("reference.force", "a sine reference is a desired force: \"none\" needs reference.kind = \"gait\" or \"pose\" (the wearer's motion)"));
+    }
+    if f.human.mode != HumanMode::Off {
+        return Err(c.fail("human.mode", format!("w1 = k_p (F_L - F_d) + k_d (dF_L/dt - dF_d/dt) {why}: set human.mode = \"off\"")));
+    }
+    if f.reference.assist_fraction > 0.0 {
+        return Err(c.fail("reference.assist_fraction", format!("exoleg's stance assistance {why}: the controller decides the assistance")));
+    }
+    if f.actuator.force_source == crate::hydraulics::ForceSource::Reference && f.actuator.mode == ActuatorMode::Force {
+        return Err(c.fail("actuator.force_source", format!("`reference` {why}")));
+    }
+    if f.criteria.max_force_error_n.is_some() || f.criteria.rms_force_error_n.is_some() {
+        return Err(c.fail("criteria", format!("a force-error criterion {why}")));
+    }
+    if f.controller.sample_period_s == 0.0 && f.controller.kind.needs_reference() {
+        return Err(c.fail("controller.kind", format!("`{}` (continuous) {why}: a controller that decides the assistance runs sampled (a plugin, open_loop, or yours with controller.sample_period_s > 0)", f.controller.kind.as_str())));
+    }
     Ok(())
 }
 
@@ -446,6 +473,10 @@ fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
             "metrics.settle_s",
             format!("must be shorter than sim.duration_s = {} (nothing would be left to measure)", f.sim.duration_s),
         ));
+    }
+    let cl = &f.cuff_limits;
+    for (k, v) in [("comfort_n", cl.comfort_n), ("thigh_pain_n", cl.thigh_pain_n), ("shank_pain_n", cl.shank_pain_n)] {
+        c.positive(&format!("cuff_limits.{k}"), v)?;
     }
     let cr = &f.criteria;
     for (k, v) in cr.limits() {

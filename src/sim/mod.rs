@@ -193,9 +193,13 @@ impl Simulation {
                     "a controller from outside runs sampled: set controller.sample_period_s > 0",
                 ))
             }
+            (None, _) if !sc.desired_force && sc.controller.needs_reference() => return Err(Self::no_reference(&sc)),
             (None, _) => ControlBlock::Continuous(sc.controller.continuous(sc.nominal)),
             (Some(every), source) => {
                 let ctrl = match source {
+                    ControllerSource::Model if !sc.desired_force && sc.controller.needs_reference() => {
+                        return Err(Self::no_reference(&sc))
+                    }
                     ControllerSource::Model => Some(
                         sc.controller
                             .discrete(sc.nominal, sc.valve_limit)
@@ -243,6 +247,15 @@ impl Simulation {
             max_substeps: 1,
             substepped_steps: 0,
         })
+    }
+
+    /// The error of a built-in controller that tracks a desired force in a run without one.
+    fn no_reference(sc: &Model) -> Error {
+        Error::input(
+            &sc.source_name,
+            "controller.kind",
+            "this controller tracks a desired force, and reference.force = \"none\" has none: use a controller that decides the assistance (a plugin, open_loop, or your own)",
+        )
     }
 
     /// The column layout of this run's record.
@@ -371,7 +384,7 @@ impl Simulation {
 
     /// Step 0: put the hydraulics on the gait trajectory when the run starts on it.
     fn start_hydraulics(&mut self) {
-        let on_traj = self.sc.leg().is_some_and(|l| l.start_on_trajectory);
+        let on_traj = self.sc.leg().is_some_and(|l| l.start_on_trajectory) && self.sc.desired_force;
         if on_traj && self.hydraulic() {
             let d = self.dynamics();
             let r = d.reference_at(0.0, &self.held);

@@ -34,6 +34,9 @@ pub struct Model {
     pub plant: PlantSetup,
     /// The desired force (and knee trajectory).
     pub reference: ForceReference,
+    /// exoleg computes a desired force (`reference.force = "computed"`); false: the controller
+    /// decides the assistance and the desired force is NaN everywhere.
+    pub desired_force: bool,
     /// The gait cascade's outer knee PD (gait runs on the leg).
     pub knee_pd: Option<KneePd>,
     /// The cylinder of the plant.
@@ -62,6 +65,8 @@ pub struct Model {
     pub device_columns: bool,
     /// Metric settings.
     pub metrics: MetricSettings,
+    /// The cuff interaction-force limits of the wearer's figures (`[cuff_limits]`).
+    pub cuff_limits: crate::metrics::CuffLimits,
 }
 
 impl Model {

@@ -104,6 +104,9 @@ pub(super) struct Dynamics<'a> {
 impl Dynamics<'_> {
     /// Desired force at `t` with the held outer-loop force.
     pub fn reference_at(&self, t: f64, held: &Held) -> RefSample {
+        if !self.sc.desired_force {
+            return RefSample { value: f64::NAN, rate: f64::NAN, accel: f64::NAN };
+        }
         let key = (t.to_bits(), held.pd_force_n.to_bits());
         let mut memo = self.memo.borrow_mut();
         if let Some(e) = memo.entries[..memo.len].iter().find(|e| (e.0, e.1) == key) {

@@ -176,6 +176,10 @@ impl RunFiles {
         if self.plots.has_knee() {
             knee_tracking_png(&self.dir.join("knee_tracking.png"), &self.plots, title)?;
         }
+        crate::output::indicators::write_indicators(&self.dir, &summary)?;
+        if let Some(c) = summary.wearer.as_ref().and_then(|w| w.cycle.as_ref()) {
+            crate::output::wearer_png(&self.dir.join("wearer.png"), c, sc.file.cuff_limits.comfort_n, title)?;
+        }
         Ok(RunReport { summary, criteria })
     }
 }
