@@ -1,5 +1,5 @@
 /*
- * exoleg_controller.h: the C ABI of an exoleg controller plugin (ABI 1.0).
+ * exoleg_controller.h: the C ABI of an exoleg controller plugin (ABI 1.1).
  *
  * A plugin is a shared library that exports the five functions below. exoleg loads it for
  * `controller.kind = "plugin"`, `controller.plugin.library = "PATH"`, and calls it once per
@@ -28,12 +28,19 @@
  * Units are SI; see the README's "Your controller" for the table of readings (when each is
  * sampled, its quantisation under each sensor preset).
  *
+ * Versions: 1.1 added the device's own sensors at the end of ExolegReadings (hip encoder,
+ * thigh and shank IMUs, foot sensors, cuff forces, pressures). A plugin built against 1.0
+ * keeps loading and reads what it knows; a 1.1 plugin that may run under an older exoleg
+ * reads the device fields only when `readings->size >= offsetof(ExolegReadings,
+ * device_counts) + sizeof readings->device_counts` (EXOLEG_READINGS_HAS_DEVICE below).
+ *
  * Build (Linux):  cc -O2 -fPIC -shared -ffp-contract=off -I include -o libmyctl.so myctl.c
  * (-ffp-contract=off keeps a*b+c as two roundings, as exoleg's Rust code computes it.)
  */
 #ifndef EXOLEG_CONTROLLER_H
 #define EXOLEG_CONTROLLER_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #ifdef __cplusplus
@@ -41,7 +48,7 @@ extern "C" {
 #endif
 
 #define EXOLEG_ABI_MAJOR 1
-#define EXOLEG_ABI_MINOR 0
+#define EXOLEG_ABI_MINOR 1
 #define EXOLEG_ABI_VERSION ((uint32_t)((EXOLEG_ABI_MAJOR << 16) | EXOLEG_ABI_MINOR))
 
 #define EXOLEG_OK 0
@@ -54,6 +61,22 @@ extern "C" {
 #define EXOLEG_CH_PISTON 2
 #define EXOLEG_CH_KNEE 3
 #define EXOLEG_CH_PISTON_VELOCITY 4
+
+/* The device's A/D channels (ABI 1.1), in the order of ExolegReadings.device_counts. */
+#define EXOLEG_DEV_HIP 0
+#define EXOLEG_DEV_THIGH_ACCEL 1 /* x, y, z: 1, 2, 3 */
+#define EXOLEG_DEV_THIGH_GYRO 4  /* 4, 5, 6 */
+#define EXOLEG_DEV_SHANK_ACCEL 7 /* 7, 8, 9 */
+#define EXOLEG_DEV_SHANK_GYRO 10 /* 10, 11, 12 */
+#define EXOLEG_DEV_HEEL 13
+#define EXOLEG_DEV_FOREFOOT 14
+#define EXOLEG_DEV_THIGH_CUFF 15
+#define EXOLEG_DEV_SHANK_CUFF 16
+#define EXOLEG_DEV_PRESSURE_A 17
+#define EXOLEG_DEV_PRESSURE_B 18
+#define EXOLEG_DEV_SUPPLY_PRESSURE 19
+#define EXOLEG_DEV_LOAD_PRESSURE 20
+#define EXOLEG_DEV_CHANNELS 21
 
 #define EXOLEG_LOG_LEN 8
 #define EXOLEG_MESSAGE_LEN 160
@@ -105,7 +128,33 @@ typedef struct ExolegReadings {
     double next_ref_force_accel_n_per_s2; /* N/s^2 */
     double valve_command_limit;           /* 0 = none */
     int64_t counts[5]; /* raw A/D counts: reading = counts * lsb, lsb = 2 range / 2^bits */
+    /* ABI 1.1: the device's own sensors, NaN where the run has none (the bench; a sensor
+       switched off). IMU axes are in the sensor frame (x forward, y left, z up along the
+       segment with the default mounting); accelerometers read specific force (+9.81 m/s^2
+       up at rest), gyroscopes the angular velocity (sagittal: y = -d(segment angle)/dt). */
+    double hip_rad;                /* hip flexion encoder (thigh relative to the pelvis), rad */
+    double hip_rate_rad_s;         /* its filtered difference, rad/s */
+    double thigh_accel_m_s2[3];    /* thigh IMU accelerometer x, y, z, m/s^2 */
+    double thigh_gyro_rad_s[3];    /* thigh IMU gyroscope x, y, z, rad/s */
+    double shank_accel_m_s2[3];    /* shank IMU accelerometer, m/s^2 */
+    double shank_gyro_rad_s[3];    /* shank IMU gyroscope, rad/s */
+    double heel_force_n;           /* heel force sensor, N (0 below its threshold) */
+    double forefoot_force_n;       /* forefoot force sensor, N */
+    double foot_contact;           /* foot switch: 1 when heel or forefoot reads above 0, else 0 */
+    double thigh_cuff_force_n;     /* thigh cuff normal force, N (forward positive) */
+    double shank_cuff_force_n;     /* shank cuff normal force, N (forward positive) */
+    double pressure_a_pa;          /* chamber A (cap side) pressure, Pa */
+    double pressure_b_pa;          /* chamber B (rod side) pressure, Pa */
+    double supply_pressure_pa;     /* supply pressure, Pa */
+    double load_pressure_pa;       /* load pressure F_L / A_eff, Pa */
+    uint32_t device_counts_valid;  /* bit i: device_counts[i] holds channel i's raw A/D counts */
+    uint32_t reserved1;
+    int64_t device_counts[EXOLEG_DEV_CHANNELS]; /* EXOLEG_DEV_* order */
 } ExolegReadings;
+
+/* Whether `r` (as exoleg filled it) carries the ABI 1.1 device fields. */
+#define EXOLEG_READINGS_HAS_DEVICE(r) \
+    ((r)->size >= offsetof(ExolegReadings, device_counts) + sizeof((r)->device_counts))
 
 /* What the plugin returns for one sample (exoleg zeroes it before each call). */
 typedef struct ExolegCommand {

@@ -51,7 +51,7 @@ pub struct ContactRow {
 /// sampled controller, `Layout::device`).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DeviceRow {
-    /// The thigh's angle (deg): its link frame's forward turn from upright (NaN unless the
+    /// The thigh's angle (deg): its link frame's forward turn from upright (0 unless the
     /// device's columns are written).
     pub thigh_angle_deg: f64,
     /// The shank's angle (deg), the same way.

@@ -3,7 +3,8 @@
 //! `valve_command` and logged channels (numbers, the same keys at every sample).
 
 use crate::{py_err, ColumnSink, ControllerError};
-use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput, MAX_LOGGED, READINGS};
+use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput, MAX_LOGGED, N_READINGS, READINGS};
+use exoleg::sensors::{DEVICE_CHANNELS, DEVICE_READINGS};
 use exoleg::scenario::ResolvedScenario;
 use exoleg::sim::{ControllerSource, Simulation};
 use exoleg::study::sweep::ControllerFactory;
@@ -15,7 +16,7 @@ use std::sync::{Arc, Mutex};
 /// The readings of one sample, by name (SI units; see the README's "Your controller"). One
 /// object is reused for every sample of a run: keep the numbers, not the object.
 #[pyclass(module = "exoleg._native")]
-#[derive(Clone, Default)]
+#[derive(Clone)]
 pub struct Obs {
     /// Sample instant (s).
     #[pyo3(get)]
@@ -71,6 +72,12 @@ pub struct Obs {
     /// Raw A/D counts (force, spool, piston, knee, piston velocity; None = not quantised).
     #[pyo3(get)]
     pub counts: Counts,
+    /// The device's readings (ABI 1.1: `hip_rad` ... `load_pressure_pa`), read by name through
+    /// `__getattr__`.
+    pub device: [f64; DEVICE_READINGS],
+    /// The device's raw A/D counts (`exoleg.Obs.device_channels` order; None = not quantised).
+    #[pyo3(get)]
+    pub device_counts: Vec<Option<i64>>,
 }
 
 /// Raw A/D counts of the five channels (None = not quantised).
@@ -80,8 +87,13 @@ impl Obs {
     /// Fill from one sample (the fields in the order of `exoleg::control::READINGS`).
     pub fn set(&mut self, s: &SampleInput) {
         let c = s.counts.0;
+        let v = s.reading_values();
         let [t_s, period_s, force_n, force_rate_n_per_s, spool_m, piston_m, piston_velocity_m_s, piston_accel_m_s2, knee_rad, knee_rate_rad_s, ref_force_n, ref_force_rate_n_per_s, ref_force_accel_n_per_s2, next_ref_force_n, next_ref_force_rate_n_per_s, next_ref_force_accel_n_per_s2, valve_command_limit] =
-            s.reading_values();
+            std::array::from_fn(|i| v[i]);
+        self.device.copy_from_slice(&v[17..]);
+        self.device_counts.clear();
+        self.device_counts.extend_from_slice(&s.device_counts.0);
+        let (device, device_counts) = (self.device, std::mem::take(&mut self.device_counts));
         *self = Obs {
             t_s,
             period_s,
@@ -101,11 +113,15 @@ impl Obs {
             next_ref_force_accel_n_per_s2,
             valve_command_limit,
             counts: (c[0], c[1], c[2], c[3], c[4]),
+            device,
+            device_counts,
         };
     }
 
-    fn values(&self) -> [f64; 17] {
-        [
+    fn values(&self) -> [f64; N_READINGS] {
+        let mut v = [0.0; N_READINGS];
+        v[17..].copy_from_slice(&self.device);
+        v[..17].copy_from_slice(&[
             self.t_s,
             self.period_s,
             self.force_n,
@@ -123,7 +139,35 @@ impl Obs {
             self.next_ref_force_rate_n_per_s,
             self.next_ref_force_accel_n_per_s2,
             self.valve_command_limit,
-        ]
+        ]);
+        v
+    }
+}
+
+impl Default for Obs {
+    fn default() -> Self {
+        Self {
+            t_s: 0.0,
+            period_s: 0.0,
+            force_n: 0.0,
+            force_rate_n_per_s: 0.0,
+            spool_m: 0.0,
+            piston_m: 0.0,
+            piston_velocity_m_s: 0.0,
+            piston_accel_m_s2: 0.0,
+            knee_rad: 0.0,
+            knee_rate_rad_s: 0.0,
+            ref_force_n: 0.0,
+            ref_force_rate_n_per_s: 0.0,
+            ref_force_accel_n_per_s2: 0.0,
+            next_ref_force_n: 0.0,
+            next_ref_force_rate_n_per_s: 0.0,
+            next_ref_force_accel_n_per_s2: 0.0,
+            valve_command_limit: 0.0,
+            counts: Default::default(),
+            device: [f64::NAN; DEVICE_READINGS],
+            device_counts: Vec::with_capacity(DEVICE_CHANNELS.len()),
+        }
     }
 }
 
@@ -138,6 +182,22 @@ impl Obs {
     /// The readings as a numpy float64 vector, in the order of `Obs.fields`.
     fn array<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
         numpy::PyArray1::from_slice_bound(py, &self.values())
+    }
+
+    /// The device's A/D channels, in the order of `Obs.device_counts`.
+    #[classattr]
+    fn device_channels() -> Vec<&'static str> {
+        DEVICE_CHANNELS.iter().map(|c| c.reading).collect()
+    }
+
+    /// The device's readings by name (`obs.thigh_gyro_y_rad_s`, ...).
+    fn __getattr__(&self, name: &str) -> PyResult<f64> {
+        match READINGS[17..].iter().position(|r| r.name == name) {
+            Some(i) => Ok(self.device[i]),
+            None => Err(pyo3::exceptions::PyAttributeError::new_err(format!(
+                "'Obs' has no reading `{name}` (Obs.fields lists them)"
+            ))),
+        }
     }
 
     /// A copy that later samples do not change.

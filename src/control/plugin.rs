@@ -30,8 +30,9 @@ use std::sync::Arc;
 
 /// The ABI's major version: a library reporting another major is refused.
 pub const ABI_MAJOR: u32 = 1;
-/// The ABI's minor version (additions at the end of the structs; sizes tell them apart).
-pub const ABI_MINOR: u32 = 0;
+/// The ABI's minor version (additions at the end of the structs; sizes tell them apart): 1.1
+/// added the device's sensors to [`ExolegReadings`].
+pub const ABI_MINOR: u32 = 1;
 /// Most logged channels a plugin may fill (`ExolegCommand.log`).
 pub const PLUGIN_LOG_LEN: usize = 8;
 /// Bytes of the plugin's message buffer (`ExolegCommand.message`), the terminating NUL included.
@@ -136,7 +137,7 @@ pub struct ExolegInfo {
 
 /// The readings of one sample (see the README's table).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 pub struct ExolegReadings {
     /// `sizeof(ExolegReadings)`.
     pub size: u32,
@@ -179,6 +180,42 @@ pub struct ExolegReadings {
     pub valve_command_limit: f64,
     /// Raw A/D counts, by channel (valid where `counts_valid` says).
     pub counts: [i64; 5],
+    /// ABI 1.1: hip encoder (rad).
+    pub hip_rad: f64,
+    /// Its filtered difference (rad/s).
+    pub hip_rate_rad_s: f64,
+    /// Thigh accelerometer x, y, z (m/s^2, sensor frame).
+    pub thigh_accel_m_s2: [f64; 3],
+    /// Thigh gyroscope (rad/s).
+    pub thigh_gyro_rad_s: [f64; 3],
+    /// Shank accelerometer (m/s^2).
+    pub shank_accel_m_s2: [f64; 3],
+    /// Shank gyroscope (rad/s).
+    pub shank_gyro_rad_s: [f64; 3],
+    /// Heel force (N).
+    pub heel_force_n: f64,
+    /// Forefoot force (N).
+    pub forefoot_force_n: f64,
+    /// Foot switch (0 or 1).
+    pub foot_contact: f64,
+    /// Thigh cuff force (N).
+    pub thigh_cuff_force_n: f64,
+    /// Shank cuff force (N).
+    pub shank_cuff_force_n: f64,
+    /// Chamber A pressure (Pa).
+    pub pressure_a_pa: f64,
+    /// Chamber B pressure (Pa).
+    pub pressure_b_pa: f64,
+    /// Supply pressure (Pa).
+    pub supply_pressure_pa: f64,
+    /// Load pressure (Pa).
+    pub load_pressure_pa: f64,
+    /// Bit i: `device_counts[i]` holds the device channel i's raw A/D counts.
+    pub device_counts_valid: u32,
+    /// Reserved (0).
+    pub reserved1: u32,
+    /// The device's raw A/D counts (`crate::sensors::DEVICE_CHANNELS` order).
+    pub device_counts: [i64; 21],
 }
 
 /// What a plugin returns for one sample.
@@ -345,12 +382,71 @@ impl PluginSetup {
             setup: self.clone(),
             handle,
             name: self.lib.name(),
-            readings: ExolegReadings { size: std::mem::size_of::<ExolegReadings>() as u32, ..Default::default() },
+            readings: ExolegReadings::default(),
             command: ExolegCommand::default(),
             reset: false,
             warnings: 0,
             last_warning: None,
         })
+    }
+}
+
+/// Raw counts as the ABI carries them: a validity bit per channel and the counts (0 where
+/// invalid).
+fn counts_of<const N: usize>(c: &[Option<i64>; N]) -> (u32, [i64; N]) {
+    let mut valid = 0u32;
+    let mut counts = [0i64; N];
+    for (i, n) in c.iter().enumerate() {
+        if let Some(n) = n {
+            valid |= 1 << i;
+            counts[i] = *n;
+        }
+    }
+    (valid, counts)
+}
+
+impl Default for ExolegReadings {
+    fn default() -> Self {
+        Self {
+            size: std::mem::size_of::<Self>() as u32,
+            counts_valid: 0,
+            t_s: 0.0,
+            period_s: 0.0,
+            force_n: 0.0,
+            force_rate_n_per_s: 0.0,
+            spool_m: 0.0,
+            piston_m: 0.0,
+            piston_velocity_m_s: 0.0,
+            piston_accel_m_s2: 0.0,
+            knee_rad: 0.0,
+            knee_rate_rad_s: 0.0,
+            ref_force_n: 0.0,
+            ref_force_rate_n_per_s: 0.0,
+            ref_force_accel_n_per_s2: 0.0,
+            next_ref_force_n: 0.0,
+            next_ref_force_rate_n_per_s: 0.0,
+            next_ref_force_accel_n_per_s2: 0.0,
+            valve_command_limit: 0.0,
+            counts: [0; 5],
+            hip_rad: 0.0,
+            hip_rate_rad_s: 0.0,
+            thigh_accel_m_s2: [0.0; 3],
+            thigh_gyro_rad_s: [0.0; 3],
+            shank_accel_m_s2: [0.0; 3],
+            shank_gyro_rad_s: [0.0; 3],
+            heel_force_n: 0.0,
+            forefoot_force_n: 0.0,
+            foot_contact: 0.0,
+            thigh_cuff_force_n: 0.0,
+            shank_cuff_force_n: 0.0,
+            pressure_a_pa: 0.0,
+            pressure_b_pa: 0.0,
+            supply_pressure_pa: 0.0,
+            load_pressure_pa: 0.0,
+            device_counts_valid: 0,
+            reserved1: 0,
+            device_counts: [0; 21],
+        }
     }
 }
 
@@ -384,15 +480,9 @@ impl PluginController {
     }
 
     fn fill(&mut self, s: &SampleInput) {
-        let (y, r) = (&s.y, &self.readings);
-        let mut valid = 0u32;
-        let mut counts = [0i64; 5];
-        for (i, c) in s.counts.0.iter().enumerate() {
-            if let Some(n) = c {
-                valid |= 1 << i;
-                counts[i] = *n;
-            }
-        }
+        let (y, r, d) = (&s.y, &self.readings, &s.device);
+        let (valid, counts) = counts_of(&s.counts.0);
+        let (device_counts_valid, device_counts) = counts_of(&s.device_counts.0);
         self.readings = ExolegReadings {
             size: r.size,
             counts_valid: valid,
@@ -414,6 +504,24 @@ impl PluginController {
             next_ref_force_accel_n_per_s2: s.r_next.accel,
             valve_command_limit: s.valve_limit.0,
             counts,
+            hip_rad: d.hip_rad,
+            hip_rate_rad_s: d.hip_rate_rad_s,
+            thigh_accel_m_s2: d.thigh_accel_m_s2,
+            thigh_gyro_rad_s: d.thigh_gyro_rad_s,
+            shank_accel_m_s2: d.shank_accel_m_s2,
+            shank_gyro_rad_s: d.shank_gyro_rad_s,
+            heel_force_n: d.heel_force_n,
+            forefoot_force_n: d.forefoot_force_n,
+            foot_contact: d.foot_contact,
+            thigh_cuff_force_n: d.thigh_cuff_force_n,
+            shank_cuff_force_n: d.shank_cuff_force_n,
+            pressure_a_pa: d.pressure_a_pa,
+            pressure_b_pa: d.pressure_b_pa,
+            supply_pressure_pa: d.supply_pressure_pa,
+            load_pressure_pa: d.load_pressure_pa,
+            device_counts_valid,
+            reserved1: 0,
+            device_counts,
         };
     }
 

@@ -374,12 +374,14 @@ impl Dynamics<'_> {
     /// The device's row from its truth `d` at state `s`, with the device moment of
     /// `cylinder_force_n` on `arm_m`.
     fn device_row(&self, d: &DeviceTruth, s: &State, cylinder_force_n: f64, arm_m: f64) -> DeviceRow {
+        // What is not computed (the kinematics and the foot's split without the device's
+        // columns) is 0 (not NaN: rows compare equal run to run).
         let (heel, fore) = match (&d.foot, &self.sc.device) {
             (Some(f), Some(dev)) => f.split(dev.foot_x_m.0, dev.foot_x_m.1),
-            _ => (f64::NAN, f64::NAN),
+            _ => (0.0, 0.0),
         };
         let seg = |f: fn(&crate::sensors::LegKinematics) -> crate::sensors::SegmentState| {
-            d.leg.as_ref().map_or((f64::NAN, f64::NAN), |l| {
+            d.leg.as_ref().map_or((0.0, 0.0), |l| {
                 let g = f(l);
                 (g.angle_rad().to_degrees(), -g.omega_rad_s.to_degrees())
             })

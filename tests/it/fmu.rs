@@ -4,7 +4,7 @@
 //! are refused with a message (never a panic). The C library itself is exercised through FMPy
 //! in `python/tests/test_fmu.py`.
 
-use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput, READINGS};
+use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput, N_READINGS, READINGS};
 use exoleg::fmu::{Phase, Slave, VarType};
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -63,7 +63,7 @@ fn attr<'a>(xml: &'a str, name: &str) -> &'a str {
 
 /// ERL-SMC (the paper's Eq. 50) over the readings in the order of [`READINGS`] and the
 /// nominal model (n1, n2, n3, tau_s, k_s): the one law both routes run.
-fn erl_smc(v: &[f64; 17], nominal: [f64; 5]) -> f64 {
+fn erl_smc(v: &[f64; N_READINGS], nominal: [f64; 5]) -> f64 {
     let [n1, n2, n3, tau, ks] = nominal;
     let (k, delta, zeta) = (100.0, 15.0, 10.0);
     let e = v[10] - v[2];
@@ -110,7 +110,7 @@ fn master_run(u: &Unpacked, states: &[&str], duration_s: f64) -> (Vec<f64>, Vec<
     let n = (duration_s / h).round() as usize;
     let (mut commands, mut rows) = (Vec::new(), Vec::new());
     for k in 0..n {
-        let v: [f64; 17] = get(&mut slave, &readings).try_into().unwrap();
+        let v: [f64; N_READINGS] = get(&mut slave, &readings).try_into().unwrap();
         let cmd = erl_smc(&v, nominal);
         slave.set(VarType::Real, &[1000], &[cmd]).unwrap();
         rows.push(get(&mut slave, &truth));

@@ -69,6 +69,11 @@
 //!   gait_treadmill's extensor peak 15.8 -> 20.8 N m (data 29.8), knee moment correlation
 //!   0.912 -> 0.830, unfiltered peak 865 -> 985 N; treadmill_subject (subject 01, T05):
 //!   extensor peak 6 -> 9 N m (data 15), knee moment correlation 0.959 -> 0.921.
+//! - gait_treadmill, treadmill_subject (issue 32, the device's sensors): leg runs with a
+//!   sampled controller record the device's 13 truth columns (segment angles and rates, heel
+//!   and forefoot forces, cuff forces, pressures, hydraulic power, the device's knee moment)
+//!   after the contact columns. Nothing else changed: the files without those columns hash
+//!   to the previous records (checked below, `WITHOUT_DEVICE_COLUMNS`).
 
 use sha2::{Digest, Sha256};
 use std::path::Path;
@@ -84,10 +89,30 @@ const EXPECTED: [(&str, &str); 10] = [
     ("paper_2hz_gamma200", "8bfafba8298a3886711e89216a95b04f8e046d5d8290bc4959a31cad5ff6172e"),
     // Added with issue 12 (loaded walking).
     ("stand", "1db9d3ff5af0e9a9cd5ca7655aa63166708ad14ecf1fcbb01ead55ca02b9e79b"),
-    ("gait_treadmill", "d3a1fc750674f5f4a7e930fe564eb94b6909b2167d59456be0921f36d5f40bea"),
+    ("gait_treadmill", "886343f1469b4fbbc7224d6be362398f07a248ddd370ee2819eb18b984c57026"),
     // Added with issue 23 (any subject).
+    ("treadmill_subject", "0e5b346db061823c570f7e8876ebf4285b0d146c1801ec8703f986f8ea68044e"),
+];
+
+/// The records before issue 32 of the runs that now carry the device's columns: the files
+/// without those columns.
+const WITHOUT_DEVICE_COLUMNS: [(&str, &str); 2] = [
+    ("gait_treadmill", "d3a1fc750674f5f4a7e930fe564eb94b6909b2167d59456be0921f36d5f40bea"),
     ("treadmill_subject", "2a4a46077483d2c19e2a094cbabc8f1486dbaac2e95ff7e22f5004d53ccd6624"),
 ];
+
+/// A CSV without the device's columns (`exoleg::record::DEVICE_COLUMNS`).
+fn without_device_columns(csv: &str) -> String {
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let keep: Vec<usize> =
+        (0..header.len()).filter(|i| !exoleg::record::DEVICE_COLUMNS.contains(&header[*i])).collect();
+    let pick = |l: &str| {
+        let v: Vec<&str> = l.split(',').collect();
+        keep.iter().map(|i| v[*i]).collect::<Vec<_>>().join(",") + "\n"
+    };
+    std::iter::once(header.join(",")).map(|h| pick(&h)).chain(lines.map(pick)).collect()
+}
 
 #[test]
 fn shipped_scenarios_give_the_recorded_timeseries() {
@@ -103,9 +128,17 @@ fn shipped_scenarios_give_the_recorded_timeseries() {
             .output()
             .unwrap();
         assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
-        let got = format!("{:x}", Sha256::digest(std::fs::read(out.join("timeseries.csv")).unwrap()));
+        let bytes = std::fs::read(out.join("timeseries.csv")).unwrap();
+        let got = format!("{:x}", Sha256::digest(&bytes));
         if got != hash {
             wrong.push(format!("{name}: {got}"));
+        }
+        if let Some((_, old)) = WITHOUT_DEVICE_COLUMNS.iter().find(|(n, _)| *n == name) {
+            let stripped = without_device_columns(std::str::from_utf8(&bytes).unwrap());
+            let got = format!("{:x}", Sha256::digest(stripped.as_bytes()));
+            if got != *old {
+                wrong.push(format!("{name} without the device's columns: {got}"));
+            }
         }
     }
     assert!(wrong.is_empty(), "changed time series:\n{}", wrong.join("\n"));

@@ -3,7 +3,7 @@
 //! time series, bit for bit; plugin faults and bad input are clean errors; sweeps with a
 //! plugin are the same for any number of jobs; the C header agrees with the Rust structs.
 
-use exoleg::control::plugin::{ExolegCommand, ExolegInfo, ExolegParam, ExolegReadings};
+use exoleg::control::plugin::{ExolegCommand, ExolegInfo, ExolegParam, ExolegReadings, ABI_MAJOR, ABI_MINOR};
 use exoleg::control::{ControlOutput, ControlStop, DiscreteController, NominalModel, SampleInput};
 use sha2::{Digest, Sha256};
 use std::mem::{offset_of, size_of};
@@ -297,8 +297,30 @@ fn the_c_header_matches_the_rust_structs() {
         next_ref_force_rate_n_per_s,
         next_ref_force_accel_n_per_s2,
         valve_command_limit,
-        counts
+        counts,
+        hip_rad,
+        hip_rate_rad_s,
+        thigh_accel_m_s2,
+        thigh_gyro_rad_s,
+        shank_accel_m_s2,
+        shank_gyro_rad_s,
+        heel_force_n,
+        forefoot_force_n,
+        foot_contact,
+        thigh_cuff_force_n,
+        shank_cuff_force_n,
+        pressure_a_pa,
+        pressure_b_pa,
+        supply_pressure_pa,
+        load_pressure_pa,
+        device_counts_valid,
+        reserved1,
+        device_counts
     ));
+    // ABI 1.1: the device's sensors at the end of the readings; the 1.0 prefix as it was
+    // (the offsets above for the fields up to `counts` are the 1.0 header's).
+    rust.push(format!("EXOLEG_ABI_VERSION {}", (ABI_MAJOR << 16) | ABI_MINOR));
+    assert_eq!((ABI_MAJOR, ABI_MINOR), (1, 1));
     rust.extend(f!(ExolegCommand, size, reserved, valve_command, disturbance_estimate_n_per_s2, log, message));
     assert_eq!(c.lines().collect::<Vec<_>>(), rust);
 }

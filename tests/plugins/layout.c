@@ -20,6 +20,13 @@ int main(void) {
     F(ExolegReadings, next_ref_force_n); F(ExolegReadings, next_ref_force_rate_n_per_s);
     F(ExolegReadings, next_ref_force_accel_n_per_s2); F(ExolegReadings, valve_command_limit);
     F(ExolegReadings, counts);
+    F(ExolegReadings, hip_rad); F(ExolegReadings, hip_rate_rad_s); F(ExolegReadings, thigh_accel_m_s2);
+    F(ExolegReadings, thigh_gyro_rad_s); F(ExolegReadings, shank_accel_m_s2); F(ExolegReadings, shank_gyro_rad_s);
+    F(ExolegReadings, heel_force_n); F(ExolegReadings, forefoot_force_n); F(ExolegReadings, foot_contact);
+    F(ExolegReadings, thigh_cuff_force_n); F(ExolegReadings, shank_cuff_force_n); F(ExolegReadings, pressure_a_pa);
+    F(ExolegReadings, pressure_b_pa); F(ExolegReadings, supply_pressure_pa); F(ExolegReadings, load_pressure_pa);
+    F(ExolegReadings, device_counts_valid); F(ExolegReadings, reserved1); F(ExolegReadings, device_counts);
+    printf("EXOLEG_ABI_VERSION %u\n", (unsigned)EXOLEG_ABI_VERSION);
     F(ExolegCommand, size); F(ExolegCommand, reserved); F(ExolegCommand, valve_command);
     F(ExolegCommand, disturbance_estimate_n_per_s2); F(ExolegCommand, log); F(ExolegCommand, message);
     return 0;

@@ -1,0 +1,189 @@
+/*
+ * phase_assist: a whole knee-exoskeleton controller as a firmware plugin for exoleg (ABI 1.1).
+ * It uses only the device's own sensors (no reference channels): run it with
+ * reference.force = "none", exoleg computes no desired force and scores what the wearer gets.
+ *
+ *   1. Heel strike from the heel force sensor (its rising edge over `hs_threshold_n` after the
+ *      foot switch was off), or from the shank gyroscope (`use_gyro` = 1, or when the run has
+ *      no foot sensors): armed when the shank swings forward (gyro y under -`swing_gyro_rad_s`),
+ *      a heel strike when it stops (gyro y back over 0).
+ *   2. Gait phase: the time since the last heel strike over the mean of the last three stride
+ *      times (`stride0_s` until it has one), 0..99.9 %.
+ *   3. Assistance: knee extension support in the loading response, a sin^2 bump of
+ *      `peak_nm` (N m, extensor) over 2-18 % of the stride, turned into a cylinder force with
+ *      the device's own moment-arm table dL/dq = arm0_m + arm1_m_per_rad * knee (m/rad; the
+ *      built-in leg's: -0.0523, -0.0706 over 0-30 deg).
+ *   4. Its own force loop on the load cell: the nominal model's velocity and leakage terms
+ *      plus `kf` (1/s) times the force error, dF/dt = kf (F_des - F).
+ *   5. A safety monitor: the knee outside [knee_min_rad, knee_max_rad] or a cuff force over
+ *      `cuff_limit_n` trips it; then the command follows zero force (transparent) for the rest
+ *      of the run, or (`stop_on_trip` = 1) the run stops with a message.
+ *
+ * Logged channels (controller.plugin.log, in this order): gait_phase_pct, force_desired_n,
+ * stride_s, safety_tripped. examples/python_phase_assist.py is the same controller in
+ * Python: the same arithmetic in the same order, so the two give byte-identical time series.
+ *
+ * Build:  cc -O2 -fPIC -shared -ffp-contract=off -I include \
+ *            -o target/libexoleg_phase_assist.so examples/c_controller/phase_assist.c -lm
+ * Run:    exoleg run examples/phase_assist.toml
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "exoleg_controller.h"
+
+#define N_STRIDES 3
+
+typedef struct {
+    /* parameters */
+    double peak_nm, hs_threshold_n, stride0_s, kf, arm0, arm1;
+    double knee_min, knee_max, cuff_limit, swing_gyro, use_gyro, stop_on_trip;
+    /* from the host */
+    double n1, n2, n3, ks;
+    /* state */
+    int foot_off, armed, have_hs, n_strides, tripped;
+    double t_hs, strides[N_STRIDES];
+} PhaseAssist;
+
+static const char *NAMES[] = {"peak_nm",     "hs_threshold_n", "stride0_s",    "kf",
+                              "arm0_m",      "arm1_m_per_rad", "knee_min_rad", "knee_max_rad",
+                              "cuff_limit_n", "swing_gyro_rad_s", "use_gyro",  "stop_on_trip"};
+
+uint32_t exoleg_abi_version(void) { return EXOLEG_ABI_VERSION; }
+
+void *exoleg_create(const ExolegInfo *info) {
+    if (info == NULL || info->size < sizeof(ExolegInfo)) {
+        return NULL;
+    }
+    PhaseAssist *c = calloc(1, sizeof *c);
+    if (c == NULL) {
+        return NULL;
+    }
+    double *p[] = {&c->peak_nm,    &c->hs_threshold_n, &c->stride0_s, &c->kf,         &c->arm0,     &c->arm1,
+                   &c->knee_min,   &c->knee_max,       &c->cuff_limit, &c->swing_gyro, &c->use_gyro, &c->stop_on_trip};
+    const double defaults[] = {15.0, 20.0, 1.1, 100.0, -0.0523, -0.0706, -0.35, 1.4, 400.0, 1.5, 0.0, 0.0};
+    for (size_t k = 0; k < sizeof defaults / sizeof defaults[0]; k++) {
+        *p[k] = defaults[k];
+    }
+    for (uint32_t i = 0; i < info->n_params; i++) {
+        size_t k = 0;
+        while (k < sizeof defaults / sizeof defaults[0] && strcmp(info->params[i].name, NAMES[k]) != 0) {
+            k++;
+        }
+        if (k == sizeof defaults / sizeof defaults[0]) {
+            free(c); /* an unknown parameter is a mistake: refuse it */
+            return NULL;
+        }
+        *p[k] = info->params[i].value;
+    }
+    c->n1 = info->nominal_n1;
+    c->n2 = info->nominal_n2;
+    c->n3 = info->nominal_n3;
+    c->ks = info->nominal_k_s;
+    return c;
+}
+
+int32_t exoleg_reset(void *instance) {
+    PhaseAssist *c = instance;
+    c->foot_off = 0;
+    c->armed = 0;
+    c->have_hs = 0;
+    c->n_strides = 0;
+    c->tripped = 0;
+    c->t_hs = 0.0;
+    return EXOLEG_OK;
+}
+
+/* 1: a heel strike at this sample. */
+static int heel_strike(PhaseAssist *c, const ExolegReadings *y) {
+    double g = y->shank_gyro_rad_s[1];
+    if (c->use_gyro > 0.5 || isnan(y->heel_force_n)) {
+        if (isnan(g)) {
+            return 0;
+        }
+        if (g < -c->swing_gyro) {
+            c->armed = 1;
+        }
+        if (c->armed && g > 0.0) {
+            c->armed = 0;
+            return 1;
+        }
+        return 0;
+    }
+    int strike = c->foot_off && y->heel_force_n > c->hs_threshold_n;
+    if (strike) {
+        c->foot_off = 0;
+    }
+    if (y->foot_contact < 0.5) {
+        c->foot_off = 1;
+    }
+    return strike;
+}
+
+int32_t exoleg_step(void *instance, const ExolegReadings *y, ExolegCommand *cmd) {
+    PhaseAssist *c = instance;
+    if (!EXOLEG_READINGS_HAS_DEVICE(y)) {
+        snprintf(cmd->message, EXOLEG_MESSAGE_LEN, "phase_assist needs the device's sensors (exoleg with ABI 1.1)");
+        return EXOLEG_STOP;
+    }
+    double t = y->t_s;
+    if (heel_strike(c, y)) {
+        double stride = t - c->t_hs;
+        if (c->have_hs && stride > 0.4 * c->stride0_s && stride < 2.5 * c->stride0_s) {
+            for (int k = N_STRIDES - 1; k > 0; k--) {
+                c->strides[k] = c->strides[k - 1];
+            }
+            c->strides[0] = stride;
+            c->n_strides = c->n_strides < N_STRIDES ? c->n_strides + 1 : N_STRIDES;
+        }
+        c->t_hs = t;
+        c->have_hs = 1;
+    }
+    double stride_est = c->stride0_s;
+    if (c->n_strides > 0) {
+        double sum = 0.0;
+        for (int k = 0; k < c->n_strides; k++) {
+            sum = sum + c->strides[k];
+        }
+        stride_est = sum / c->n_strides;
+    }
+    double phase = 0.0;
+    if (c->have_hs) {
+        phase = 100.0 * (t - c->t_hs) / stride_est;
+        if (phase > 99.9) {
+            phase = 99.9;
+        }
+    }
+    double moment = 0.0;
+    if (phase >= 2.0 && phase <= 18.0) {
+        double s = sin(M_PI * (phase - 2.0) / 16.0);
+        moment = c->peak_nm * (s * s);
+    }
+    double arm = c->arm0 + c->arm1 * y->knee_rad;
+    double f_des = -moment / arm;
+    int out = y->knee_rad < c->knee_min || y->knee_rad > c->knee_max || fabs(y->thigh_cuff_force_n) > c->cuff_limit
+              || fabs(y->shank_cuff_force_n) > c->cuff_limit;
+    if (out && !c->tripped) {
+        c->tripped = 1;
+        if (c->stop_on_trip > 0.5) {
+            snprintf(cmd->message, EXOLEG_MESSAGE_LEN,
+                     "safety monitor: knee %.3f rad, cuffs %.1f / %.1f N at t = %.4f s", y->knee_rad,
+                     y->thigh_cuff_force_n, y->shank_cuff_force_n, t);
+            return EXOLEG_STOP;
+        }
+    }
+    if (c->tripped) {
+        f_des = 0.0;
+    }
+    double f = y->force_n;
+    cmd->valve_command = (c->kf * (f_des - f) + c->n3 * f + c->n2 * y->piston_velocity_m_s) / (c->n1 * c->ks);
+    cmd->log[0] = phase;
+    cmd->log[1] = f_des;
+    cmd->log[2] = stride_est;
+    cmd->log[3] = c->tripped;
+    return EXOLEG_OK;
+}
+
+void exoleg_destroy(void *instance) { free(instance); }
