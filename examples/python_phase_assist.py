@@ -27,7 +27,7 @@ DEFAULTS = {
     "peak_nm": 15.0,
     "hs_threshold_n": 20.0,
     "stride0_s": 1.1,
-    "kf": 100.0,
+    "kf": 300.0,
     "arm0_m": -0.0523,
     "arm1_m_per_rad": -0.0706,
     "knee_min_rad": -0.35,
@@ -36,6 +36,8 @@ DEFAULTS = {
     "swing_gyro_rad_s": 1.5,
     "use_gyro": 0.0,
     "stop_on_trip": 0.0,
+    "fric_coulomb_n": 20.0,
+    "fric_viscous_n_s_per_m": 300.0,
 }
 
 
@@ -55,8 +57,9 @@ class PhaseAssist:
         self.arm0, self.arm1 = p["arm0_m"], p["arm1_m_per_rad"]
         self.knee_min, self.knee_max, self.cuff_limit = p["knee_min_rad"], p["knee_max_rad"], p["cuff_limit_n"]
         self.swing_gyro, self.use_gyro, self.stop_on_trip = p["swing_gyro_rad_s"], p["use_gyro"], p["stop_on_trip"]
+        self.fric_c, self.fric_v = p["fric_coulomb_n"], p["fric_viscous_n_s_per_m"]
         n = info["nominal"]
-        self.n1, self.n2, self.n3, self.ks = n["n1"], n["n2"], n["n3"], n["k_s"]
+        self.n1, self.n2, self.n3, self.tau, self.ks = n["n1"], n["n2"], n["n3"], n["tau_s"], n["k_s"]
         self.foot_off = False
         self.armed = False
         self.have_hs = False
@@ -119,8 +122,13 @@ class PhaseAssist:
                 raise SafetyStop(f"safety monitor: knee {y.knee_rad:.3f} rad at t = {t:.4f} s")
         if self.tripped:
             f_des = 0.0
+        v = y.piston_velocity_m_s
+        f_des = f_des + self.fric_c * math.tanh(v / 0.005) + self.fric_v * v
         f = y.force_n
-        u = (self.kf * (f_des - f) + self.n3 * f + self.n2 * y.piston_velocity_m_s) / (self.n1 * self.ks)
+        df = y.force_rate_n_per_s
+        xv = (self.kf * (f_des - f) + self.n3 * f + self.n2 * v) / self.n1
+        dxv = ((self.n3 - self.kf) * df + self.n2 * y.piston_accel_m_s2) / self.n1
+        u = (xv + self.tau * dxv) / self.ks
         return {
             "valve_command": u,
             "gait_phase_pct": phase,

@@ -13,8 +13,13 @@
  *      `peak_nm` (N m, extensor) over 2-18 % of the stride, turned into a cylinder force with
  *      the device's own moment-arm table dL/dq = arm0_m + arm1_m_per_rad * knee (m/rad; the
  *      built-in leg's: -0.0523, -0.0706 over 0-30 deg).
- *   4. Its own force loop on the load cell: the nominal model's velocity and leakage terms
- *      plus `kf` (1/s) times the force error, dF/dt = kf (F_des - F).
+ *   4. Its own force loop on the load cell, toward the desired net force plus its own model of
+ *      the seal friction (`fric_coulomb_n` tanh(v / 5 mm/s) + `fric_viscous_n_s_per_m` v, v
+ *      the piston velocity sensor; identified on the bench, here the scenario's figures): the
+ *      spool opening x_w that makes the nominal
+ *      model's dF/dt = kf (F_des - F) (its velocity and leakage terms cancelled), led by the
+ *      spool's time constant: u = (x_w + tau d(x_w)/dt) / k_s, the rate from the load cell's
+ *      and the piston velocity's firmware differences.
  *   5. A safety monitor: the knee outside [knee_min_rad, knee_max_rad] or a cuff force over
  *      `cuff_limit_n` trips it; then the command follows zero force (transparent) for the rest
  *      of the run, or (`stop_on_trip` = 1) the run stops with a message.
@@ -39,9 +44,9 @@
 typedef struct {
     /* parameters */
     double peak_nm, hs_threshold_n, stride0_s, kf, arm0, arm1;
-    double knee_min, knee_max, cuff_limit, swing_gyro, use_gyro, stop_on_trip;
+    double knee_min, knee_max, cuff_limit, swing_gyro, use_gyro, stop_on_trip, fric_c, fric_v;
     /* from the host */
-    double n1, n2, n3, ks;
+    double n1, n2, n3, tau, ks;
     /* state */
     int foot_off, armed, have_hs, n_strides, tripped;
     double t_hs, strides[N_STRIDES];
@@ -49,7 +54,8 @@ typedef struct {
 
 static const char *NAMES[] = {"peak_nm",     "hs_threshold_n", "stride0_s",    "kf",
                               "arm0_m",      "arm1_m_per_rad", "knee_min_rad", "knee_max_rad",
-                              "cuff_limit_n", "swing_gyro_rad_s", "use_gyro",  "stop_on_trip"};
+                              "cuff_limit_n", "swing_gyro_rad_s", "use_gyro",  "stop_on_trip",
+                              "fric_coulomb_n", "fric_viscous_n_s_per_m"};
 
 uint32_t exoleg_abi_version(void) { return EXOLEG_ABI_VERSION; }
 
@@ -62,8 +68,9 @@ void *exoleg_create(const ExolegInfo *info) {
         return NULL;
     }
     double *p[] = {&c->peak_nm,    &c->hs_threshold_n, &c->stride0_s, &c->kf,         &c->arm0,     &c->arm1,
-                   &c->knee_min,   &c->knee_max,       &c->cuff_limit, &c->swing_gyro, &c->use_gyro, &c->stop_on_trip};
-    const double defaults[] = {15.0, 20.0, 1.1, 100.0, -0.0523, -0.0706, -0.35, 1.4, 400.0, 1.5, 0.0, 0.0};
+                   &c->knee_min,   &c->knee_max,       &c->cuff_limit, &c->swing_gyro, &c->use_gyro, &c->stop_on_trip,
+                   &c->fric_c,     &c->fric_v};
+    const double defaults[] = {15.0, 20.0, 1.1, 300.0, -0.0523, -0.0706, -0.35, 1.4, 400.0, 1.5, 0.0, 0.0, 20.0, 300.0};
     for (size_t k = 0; k < sizeof defaults / sizeof defaults[0]; k++) {
         *p[k] = defaults[k];
     }
@@ -81,6 +88,7 @@ void *exoleg_create(const ExolegInfo *info) {
     c->n1 = info->nominal_n1;
     c->n2 = info->nominal_n2;
     c->n3 = info->nominal_n3;
+    c->tau = info->nominal_tau_s;
     c->ks = info->nominal_k_s;
     return c;
 }
@@ -177,8 +185,13 @@ int32_t exoleg_step(void *instance, const ExolegReadings *y, ExolegCommand *cmd)
     if (c->tripped) {
         f_des = 0.0;
     }
+    double v = y->piston_velocity_m_s;
+    f_des = f_des + c->fric_c * tanh(v / 0.005) + c->fric_v * v;
     double f = y->force_n;
-    cmd->valve_command = (c->kf * (f_des - f) + c->n3 * f + c->n2 * y->piston_velocity_m_s) / (c->n1 * c->ks);
+    double df = y->force_rate_n_per_s;
+    double xv = (c->kf * (f_des - f) + c->n3 * f + c->n2 * v) / c->n1;
+    double dxv = ((c->n3 - c->kf) * df + c->n2 * y->piston_accel_m_s2) / c->n1;
+    cmd->valve_command = (xv + c->tau * dxv) / c->ks;
     cmd->log[0] = phase;
     cmd->log[1] = f_des;
     cmd->log[2] = stride_est;

@@ -430,17 +430,18 @@ pub mod device_preset {
     pub const ACCEL_NOISE_DENSITY: f64 = 400e-6 * GRAVITY_M_S2;
     /// A unit's zero-g offsets within the datasheet's +-50 mg (x, y) / +-80 mg (z) (m/s^2).
     pub const ACCEL_BIAS: [f64; 3] = [0.20, -0.15, 0.30];
-    /// Accelerometer bias random walk (m/s^2/sqrt(s)): a MEMS-class 1e-3 (the datasheet gives
-    /// none; Allan-deviation figures of this class, e.g. gz-sensors' ADIS16448 example).
-    pub const ACCEL_BIAS_RW: f64 = 1e-3;
+    /// Accelerometer bias random walk (m/s^2/sqrt(s)): 2e-4, about 20 ug/sqrt(s) (the datasheet
+    /// gives none; Allan-deviation figures of consumer MEMS accelerometers are of this order).
+    pub const ACCEL_BIAS_RW: f64 = 2e-4;
     /// A unit's sensitivity errors within the datasheet's +-3 % calibration tolerance.
     pub const ACCEL_SCALE: [f64; 3] = [0.010, -0.008, 0.012];
     /// MPU-6000 gyroscope rate-noise density, 0.005 deg/s/sqrt(Hz) (6.1).
     pub const GYRO_NOISE_DENSITY: f64 = 0.005 * DEG;
     /// A unit's zero-rate offsets (rad/s; 0.5, -0.3, 0.4 deg/s, within +-20 deg/s).
     pub const GYRO_BIAS: [f64; 3] = [0.5 * DEG, -0.3 * DEG, 0.4 * DEG];
-    /// Gyroscope bias random walk (rad/s/sqrt(s)).
-    pub const GYRO_BIAS_RW: f64 = 1e-4;
+    /// Gyroscope bias random walk (rad/s/sqrt(s)): 2e-5, about 4 deg/h/sqrt(s) (of the order of
+    /// consumer MEMS gyroscopes' rate random walk; the datasheet gives none).
+    pub const GYRO_BIAS_RW: f64 = 2e-5;
     /// Gyroscope sensitivity errors (within +-3 %).
     pub const GYRO_SCALE: [f64; 3] = [-0.010, 0.015, 0.005];
     /// The IMU's A/D word length (16 bits) and output data rate (1 kHz).
