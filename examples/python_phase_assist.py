@@ -6,7 +6,7 @@ order, so the two give byte-identical time series. It reads only the device's se
 reference channels): the scenario sets reference.force = "none".
 
     pip install ./python
-    python examples/python_phase_assist.py [SCENARIO] [OUT]
+    python examples/python_phase_assist.py [SCENARIO] [OUT] [DURATION_S]
 
 Default scenario: examples/phase_assist.toml (its C plugin is replaced by this controller).
 """
@@ -22,6 +22,8 @@ SCENARIO = sys.argv[1] if len(sys.argv) > 1 else os.path.join(HERE, "phase_assis
 OUT = sys.argv[2] if len(sys.argv) > 2 else None
 # The caller's controller replaces the scenario's plugin (which then need not be built).
 OVERRIDES = {"controller.kind": "open_loop"}
+if len(sys.argv) > 3:
+    OVERRIDES["sim.duration_s"] = float(sys.argv[3])
 N_STRIDES = 3
 DEFAULTS = {
     "peak_nm": 15.0,

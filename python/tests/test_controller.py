@@ -124,3 +124,43 @@ def test_the_python_example_runs():
     p = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "python_controller.py")], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
     assert "the same time series: True" in p.stdout
+
+
+def test_the_device_readings_by_name(tmp_path):
+    """ABI 1.1's readings reach Python: 40 fields, the device's by name, their raw counts."""
+    assert len(exoleg.Obs.fields) == 40 and exoleg.Obs.fields[17] == "hip_rad"
+    assert exoleg.Obs.device_channels[0] == "hip_rad" and len(exoleg.Obs.device_channels) == 21
+    seen = []
+
+    def law(obs):
+        with pytest.raises(AttributeError, match="Obs.fields"):
+            obs.no_such_reading
+        seen.append((obs.thigh_accel_z_m_s2, obs.supply_pressure_pa, obs.heel_force_n, obs.device_counts[19], obs.array()[38]))
+        return 0.0
+
+    ov = {"sim.duration_s": 0.01, "metrics.settle_s": 0.0, "controller.sample_period_s": 0.001, "sensors.preset": "adc16",
+          "reference.force": "none",
+          "controller.kind": "open_loop"}
+    exoleg.run(os.path.join(ROOT, "assets", "scenarios", "stand.toml"), ov)
+    exoleg.run(os.path.join(ROOT, "assets", "scenarios", "stand.toml"), ov, controller=law)
+    az, ps, heel, counts, ps_array = seen[0]
+    # Standing: the thigh IMU reads about +g up; the supply transducer 8 MPa in 16-bit counts.
+    assert 9.0 < az < 9.82 and ps == ps_array and abs(ps - 8e6) < 1e3 and heel == 0.0  # 2 mm above the ground at t = 0
+    assert counts == round(ps / (2 * 25e6 / 65536))
+
+
+def test_phase_assist_in_c_and_python_give_the_same_csv(tmp_path):
+    """examples/phase_assist.toml: the C plugin and the Python controller, byte for byte."""
+    lib = os.path.join(ROOT, "target", "libexoleg_phase_assist.so")
+    src = os.path.join(ROOT, "examples", "c_controller", "phase_assist.c")
+    cc = ["cc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-I", os.path.join(ROOT, "include"), "-o", lib, src, "-lm"]
+    assert subprocess.run(cc, capture_output=True).returncode == 0
+    scenario = os.path.join(ROOT, "examples", "phase_assist.toml")
+    short = ["--set", "sim.duration_s=3.0"]
+    p = subprocess.run([BIN, "run", "--quiet", "--out", str(tmp_path / "c"), scenario] + short, capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    py = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "python_phase_assist.py"), scenario, str(tmp_path / "py"), "3.0"],
+                        capture_output=True, text=True)
+    assert py.returncode == 0, py.stderr
+    assert "heel strikes detected" in py.stdout
+    assert (tmp_path / "c" / "timeseries.csv").read_bytes() == (tmp_path / "py" / "timeseries.csv").read_bytes()
