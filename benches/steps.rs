@@ -45,6 +45,23 @@ fn steps(c: &mut Criterion) {
         g.throughput(Throughput::Elements(s.model.steps as u64));
         g.bench_function(name, |b| b.iter(|| exoleg::run(&s.model, &mut NullSink).expect("run")));
     }
+    // The device's sensors (issue 32) on the reduced treadmill at 1 ms (every step a sample):
+    // none sampled (the model without its device setup: the sampled step as it was), and every
+    // one on with the `device` preset's noise, biases, walks, rates and A/D.
+    let base = ["sim.duration_s=1.1", "leg.engine=\"reduced\"", "sim.dt_s=0.001", "metrics.settle_s=0.5"];
+    let with = exoleg::load(Some(&treadmill), &base).unwrap();
+    let mut without = (*with.model).clone();
+    without.device = None;
+    without.device_columns = false;
+    let without = std::sync::Arc::new(without);
+    let device = exoleg::load(Some(&treadmill), &[&base[..], &["sensors.preset=\"device\""]].concat()).unwrap();
+    g.throughput(Throughput::Elements(with.model.steps as u64));
+    g.bench_function("treadmill_reduced_1ms_no_device_sensors", |b| {
+        b.iter(|| exoleg::run(&without, &mut NullSink).expect("run"))
+    });
+    g.bench_function("treadmill_reduced_1ms_device_preset", |b| {
+        b.iter(|| exoleg::run(&device.model, &mut NullSink).expect("run"))
+    });
     let tmp = tempfile::tempdir().unwrap();
     for (name, sets) in [
         ("reduced", &["leg.engine=\"reduced\"", "sim.duration_s=10.0"][..]),

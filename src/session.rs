@@ -76,7 +76,8 @@ impl<S: RecordSink> Session<S> {
         });
         let walking =
             layout.contact.then(|| WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data.clone()));
-        let wearer = data.filter(|_| layout.contact).map(|d| WearerMetrics::new(sc.metrics.settle_s, d, sc.cuff_limits));
+        let wearer =
+            data.filter(|_| layout.contact).map(|d| WearerMetrics::new(sc.metrics.settle_s, d, sc.cuff_limits));
         Ok(Self { sim, metrics, walking, wearer, sink, wall: Duration::ZERO, started: false, cancel: None })
     }
 
@@ -113,7 +114,8 @@ impl<S: RecordSink> Session<S> {
             sink: &mut self.sink,
             walking: self.walking.as_mut(),
             wearer: self.wearer.as_mut(),
-        }.start(&layout)?;
+        }
+        .start(&layout)?;
         self.started = true;
         Ok(())
     }

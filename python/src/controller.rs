@@ -4,8 +4,8 @@
 
 use crate::{py_err, ColumnSink, ControllerError};
 use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput, MAX_LOGGED, N_READINGS, READINGS};
-use exoleg::sensors::{DEVICE_CHANNELS, DEVICE_READINGS};
 use exoleg::scenario::ResolvedScenario;
+use exoleg::sensors::{DEVICE_CHANNELS, DEVICE_READINGS};
 use exoleg::sim::{ControllerSource, Simulation};
 use exoleg::study::sweep::ControllerFactory;
 use exoleg::Error;

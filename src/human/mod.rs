@@ -42,7 +42,14 @@ pub struct HumanParams {
 
 impl Default for HumanParams {
     fn default() -> Self {
-        Self { mode: HumanMode::Off, k_p: 0.05, k_d: 1e-3, cuff_link: "shank".into(), cuff_xyz: [0.0, 0.0, -0.2], thigh_cuff_xyz: None }
+        Self {
+            mode: HumanMode::Off,
+            k_p: 0.05,
+            k_d: 1e-3,
+            cuff_link: "shank".into(),
+            cuff_xyz: [0.0, 0.0, -0.2],
+            thigh_cuff_xyz: None,
+        }
     }
 }
 

@@ -281,10 +281,7 @@ impl LegSpec {
         let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let foot_x_m = if hi > lo { (lo, hi) } else { (-0.03, 0.15) };
-        crate::sensors::DeviceDefaults {
-            imu_xyz_m: [[0.06, 0.0, -0.4 * thigh], [0.06, 0.0, -0.35 * shank]],
-            foot_x_m,
-        }
+        crate::sensors::DeviceDefaults { imu_xyz_m: [[0.06, 0.0, -0.4 * thigh], [0.06, 0.0, -0.35 * shank]], foot_x_m }
     }
 
     /// The collision shapes of every link (used with ground contact).

@@ -342,7 +342,16 @@ pub fn wearer_png(path: &Path, c: &crate::metrics::wearer::WearerCycle, comfort_
                 series: vec![
                     ("biological (data)", pts(&c.biological_moment_nm), BLACK),
                     ("device", pts(&c.device_moment_nm), BLUE),
-                    ("wearer's remaining", pts(&c.biological_moment_nm.iter().zip(&c.device_moment_nm).map(|(b, d)| b - d).collect::<Vec<_>>()), RED),
+                    (
+                        "wearer's remaining",
+                        pts(&c
+                            .biological_moment_nm
+                            .iter()
+                            .zip(&c.device_moment_nm)
+                            .map(|(b, d)| b - d)
+                            .collect::<Vec<_>>()),
+                        RED,
+                    ),
                 ],
             },
             Panel {

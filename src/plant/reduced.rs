@@ -13,8 +13,8 @@ use crate::error::{Error, Result};
 use crate::integrator::Integrator;
 use crate::leg::{moment_arm_slope_at, ReducedModel};
 use crate::record::LegRow;
-use crate::sensors::{LegKinematics, SegmentState};
 use crate::reference::{ForceReference, RefSample};
+use crate::sensors::{LegKinematics, SegmentState};
 use std::sync::Arc;
 
 /// The reduced-coordinate leg plant.

@@ -440,9 +440,14 @@ fn leg_setup(
     let (ground, body) = body_setup(s, &l.model, mode, walking, &start, reference)?;
     let knee = l.model.knee_joint().origin_xyz;
     let thigh_cuff = f.human.thigh_cuff_xyz.unwrap_or([knee[0], 0.0, 0.6 * knee[2]]);
-    let cuff_lever_m = ((thigh_cuff[0] - knee[0]).hypot(thigh_cuff[2] - knee[2]), cuff_point_m[0].hypot(cuff_point_m[2]));
+    let cuff_lever_m =
+        ((thigh_cuff[0] - knee[0]).hypot(thigh_cuff[2] - knee[2]), cuff_point_m[0].hypot(cuff_point_m[2]));
     if cuff_lever_m.0 < 1e-3 {
-        return Err(Error::input(&s.source_name, "human.thigh_cuff_xyz", "lies on the knee axis: it carries no moment"));
+        return Err(Error::input(
+            &s.source_name,
+            "human.thigh_cuff_xyz",
+            "lies on the knee axis: it carries no moment",
+        ));
     }
     Ok(LegSetup {
         model: l.model.clone(),

@@ -231,10 +231,16 @@ fn no_desired_force(c: &Check, f: &ScenarioFile) -> Result<()> {
         return Err(c.fail("reference.force", "a sine reference is a desired force: \"none\" needs reference.kind = \"gait\" or \"pose\" (the wearer's motion)"));
     }
     if f.human.mode != HumanMode::Off {
-        return Err(c.fail("human.mode", format!("w1 = k_p (F_L - F_d) + k_d (dF_L/dt - dF_d/dt) {why}: set human.mode = \"off\"")));
+        return Err(c.fail(
+            "human.mode",
+            format!("w1 = k_p (F_L - F_d) + k_d (dF_L/dt - dF_d/dt) {why}: set human.mode = \"off\""),
+        ));
     }
     if f.reference.assist_fraction > 0.0 {
-        return Err(c.fail("reference.assist_fraction", format!("exoleg's stance assistance {why}: the controller decides the assistance")));
+        return Err(c.fail(
+            "reference.assist_fraction",
+            format!("exoleg's stance assistance {why}: the controller decides the assistance"),
+        ));
     }
     if f.actuator.force_source == crate::hydraulics::ForceSource::Reference && f.actuator.mode == ActuatorMode::Force {
         return Err(c.fail("actuator.force_source", format!("`reference` {why}")));
@@ -333,7 +339,13 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
 
 /// One `[sensors.<channel>]` table: noise, range and bits; `saturates`: its range clamps
 /// without quantisation (the device's sensors), else it needs bits to mean anything.
-fn channel_params(c: &Check, f: &ScenarioFile, key: &str, ch: &crate::sensors::ChannelParams, saturates: bool) -> Result<()> {
+fn channel_params(
+    c: &Check,
+    f: &ScenarioFile,
+    key: &str,
+    ch: &crate::sensors::ChannelParams,
+    saturates: bool,
+) -> Result<()> {
     if let Some(n) = ch.noise_std {
         c.non_negative(&format!("{key}.noise_std"), n)?;
     }

@@ -297,7 +297,8 @@ pub const DEVICE_READINGS: usize = 23;
 impl DeviceReadings {
     /// The readings in the order of the readings table's device part.
     pub fn values(&self) -> [f64; DEVICE_READINGS] {
-        let (ta, tg, sa, sg) = (self.thigh_accel_m_s2, self.thigh_gyro_rad_s, self.shank_accel_m_s2, self.shank_gyro_rad_s);
+        let (ta, tg, sa, sg) =
+            (self.thigh_accel_m_s2, self.thigh_gyro_rad_s, self.shank_accel_m_s2, self.shank_gyro_rad_s);
         [
             self.hip_rad,
             self.hip_rate_rad_s,
@@ -633,9 +634,8 @@ impl DeviceSensors {
         // R_LS^T R_y^T v.
         let (c, s) = seg.cos_sin;
         let to_link = |v: [f64; 3]| [v[0] * c - v[2] * s, v[1], v[0] * s + v[2] * c];
-        let to_sensor = |v: [f64; 3]| {
-            std::array::from_fn(|k| r_ls[0][k] * v[0] + r_ls[1][k] * v[1] + r_ls[2][k] * v[2])
-        };
+        let to_sensor =
+            |v: [f64; 3]| std::array::from_fn(|k| r_ls[0][k] * v[0] + r_ls[1][k] * v[1] + r_ls[2][k] * v[2]);
         (to_sensor(to_link(f_w)), to_sensor(to_link(w_w)))
     }
 
@@ -886,22 +886,15 @@ impl super::SensorParams {
             let xyz = p.xyz_m.unwrap_or(defaults.imu_xyz_m[i]);
             ([xyz[0], xyz[2]], rpy_matrix(p.rpy_rad))
         };
-        let foot_x_m = (
-            self.foot.heel_x_m.unwrap_or(defaults.foot_x_m.0),
-            self.foot.forefoot_x_m.unwrap_or(defaults.foot_x_m.1),
-        );
+        let foot_x_m =
+            (self.foot.heel_x_m.unwrap_or(defaults.foot_x_m.0), self.foot.forefoot_x_m.unwrap_or(defaults.foot_x_m.1));
         if foot_x_m.1 <= foot_x_m.0 {
             return Err((
                 "sensors.foot.forefoot_x_m".into(),
                 format!("must lie ahead of the heel sensor ({} m), got {} m", foot_x_m.0, foot_x_m.1),
             ));
         }
-        Ok(DeviceSetup {
-            figures,
-            every,
-            imu_mount: [mount(&self.thigh_imu, 0), mount(&self.shank_imu, 1)],
-            foot_x_m,
-        })
+        Ok(DeviceSetup { figures, every, imu_mount: [mount(&self.thigh_imu, 0), mount(&self.shank_imu, 1)], foot_x_m })
     }
 }
 

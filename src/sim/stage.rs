@@ -8,8 +8,8 @@ use crate::human::HumanMode;
 use crate::hydraulics::{ActuatorMode, ForceChannelInput, ForceRates, ForceSource, PistonKinematics};
 use crate::plant::{CoupledMechanics, CoupledStage, PistonMotion, PistonPredictor, Plant, StageInputs};
 use crate::record::{DeviceRow, Row};
-use crate::sensors::DeviceTruth;
 use crate::reference::RefSample;
+use crate::sensors::DeviceTruth;
 use crate::sensors::Measurement;
 
 /// The states beside the plant-side ones at a stage: the coupled mechanics' and the continuous

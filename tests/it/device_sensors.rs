@@ -42,7 +42,7 @@ fn recorded(s: &exoleg::Scenario) -> (Vec<(f64, DeviceReadings)>, MemoryRecord, 
 }
 
 /// The row at time `t` (s) of a run stepped by `dt` (s).
-fn row_at<'a>(rows: &'a [Row], t: f64, dt: f64) -> &'a Row {
+fn row_at(rows: &[Row], t: f64, dt: f64) -> &Row {
     let r = &rows[(t / dt).round() as usize];
     assert!((r.t_s - t).abs() < 1e-9);
     r
@@ -103,7 +103,8 @@ fn gyroscopes_cuffs_pressures_and_heel_against_the_truth() {
         let rms_pct = 100.0 * (sum / n as f64).sqrt() / range_deg_s;
         worst_rms = worst_rms.max(rms_pct);
         // One stride from 2.2 s (1.1 s long): trapezoid of the 1 kHz readings.
-        let stride: Vec<&(f64, DeviceReadings)> = samples.iter().filter(|(t, _)| *t >= 2.2 - 1e-9 && *t <= 3.3 + 1e-9).collect();
+        let stride: Vec<&(f64, DeviceReadings)> =
+            samples.iter().filter(|(t, _)| *t >= 2.2 - 1e-9 && *t <= 3.3 + 1e-9).collect();
         let integral: f64 = stride.windows(2).map(|w| 0.5 * (gyro(&w[0].1) + gyro(&w[1].1)) * (w[1].0 - w[0].0)).sum();
         let change = angle(row_at(rows, 3.3, dt)) - angle(row_at(rows, 2.2, dt));
         println!("segment {seg}: gyro RMS difference {rms_pct:.4} % of range, stride integral {integral:.4} vs {change:.4} deg");
@@ -224,10 +225,14 @@ fn the_device_presets_noise_matches_its_configuration() {
     use exoleg::sensors::device_preset as d;
     // The force loop's own sensors kept ideal (52 bits, no noise), so the noise does not make
     // the knee tremble: the leg stands still and the IMUs' truth is gravity alone.
-    let mut sets: Vec<String> =
-        ["controller.sample_period_s=0.001", "sensors.preset=\"device\"", "leg.engine=\"reduced\"", "sim.duration_s=62.0"]
-            .map(String::from)
-            .to_vec();
+    let mut sets: Vec<String> = [
+        "controller.sample_period_s=0.001",
+        "sensors.preset=\"device\"",
+        "leg.engine=\"reduced\"",
+        "sim.duration_s=62.0",
+    ]
+    .map(String::from)
+    .to_vec();
     for c in ["force", "spool", "piston", "knee", "piston_velocity"] {
         sets.push(format!("sensors.{c}.noise_std=0.0"));
         sets.push(format!("sensors.{c}.bits=52"));
@@ -250,8 +255,18 @@ fn the_device_presets_noise_matches_its_configuration() {
                 // At rest the gyroscope's truth is 0.
                 gerr.push([dv.thigh_gyro_rad_s, dv.shank_gyro_rad_s][imu][axis]);
             }
-            report.push((format!("{name} accel {axis}"), err, d::ACCEL_BIAS[axis], d::ACCEL_NOISE_DENSITY * 1000f64.sqrt()));
-            report.push((format!("{name} gyro {axis}"), gerr, d::GYRO_BIAS[axis], d::GYRO_NOISE_DENSITY * 1000f64.sqrt()));
+            report.push((
+                format!("{name} accel {axis}"),
+                err,
+                d::ACCEL_BIAS[axis],
+                d::ACCEL_NOISE_DENSITY * 1000f64.sqrt(),
+            ));
+            report.push((
+                format!("{name} gyro {axis}"),
+                gerr,
+                d::GYRO_BIAS[axis],
+                d::GYRO_NOISE_DENSITY * 1000f64.sqrt(),
+            ));
         }
     }
     // The plain channels against their truth columns: no bias; the noise with the A/D's
@@ -259,7 +274,8 @@ fn the_device_presets_noise_matches_its_configuration() {
     let lsb = |range: f64, bits: u32| 2.0 * range / 2f64.powi(bits as i32);
     let with_q = |sd: f64, l: f64| (sd * sd + l * l / 12.0).sqrt();
     let (cuff, press, foot) = (d::CUFF, d::PRESSURE, d::FOOT);
-    let plain: [(&str, fn(&DeviceReadings) -> f64, fn(&exoleg::record::DeviceRow) -> f64, f64); 6] = [
+    type Channel = (&'static str, fn(&DeviceReadings) -> f64, fn(&exoleg::record::DeviceRow) -> f64, f64);
+    let plain: [Channel; 6] = [
         ("thigh cuff", |d| d.thigh_cuff_force_n, |r| r.thigh_cuff_force_n, with_q(cuff.0, lsb(1000.0, cuff.1))),
         ("shank cuff", |d| d.shank_cuff_force_n, |r| r.shank_cuff_force_n, with_q(cuff.0, lsb(1000.0, cuff.1))),
         ("pressure A", |d| d.pressure_a_pa, |r| r.pressure_a_pa, with_q(press.0, lsb(25e6, press.1))),

@@ -30,4 +30,5 @@ mod subjects;
 mod validation;
 mod walking;
 mod walking_reduced;
+mod whole_controller;
 mod your_controller;

@@ -102,7 +102,7 @@ const WITHOUT_DEVICE_COLUMNS: [(&str, &str); 2] = [
 ];
 
 /// A CSV without the device's columns (`exoleg::record::DEVICE_COLUMNS`).
-fn without_device_columns(csv: &str) -> String {
+pub(crate) fn without_device_columns(csv: &str) -> String {
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
     let keep: Vec<usize> =

@@ -9,7 +9,6 @@ use sha2::{Digest, Sha256};
 use std::mem::{offset_of, size_of};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use std::sync::OnceLock;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -52,28 +51,7 @@ fn sha(p: &Path) -> String {
 /// Build a C file of `tests/plugins` (or the example) into a shared library, once per test
 /// binary.
 fn plugin(source: &str) -> PathBuf {
-    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
-    // One build at a time: two tests asking for the same library at once compiled it to the
-    // same temporary name, and one loaded the other's half-written file.
-    static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = DIR.get_or_init(|| tempfile::tempdir().expect("tempdir"));
-    let name = Path::new(source).file_stem().unwrap().to_string_lossy().to_string();
-    let lib = dir.path().join(format!("lib{name}.so"));
-    if !lib.exists() {
-        let tmp = dir.path().join(format!("lib{name}.{}.so", std::process::id()));
-        let o = Command::new("cc")
-            .args(["-O2", "-fPIC", "-shared", "-ffp-contract=off", "-I", "include", "-o"])
-            .arg(&tmp)
-            .arg(source)
-            .arg("-lm")
-            .current_dir(ROOT)
-            .output()
-            .expect("cc runs");
-        assert!(o.status.success(), "cc {source}: {}", String::from_utf8_lossy(&o.stderr));
-        std::fs::rename(&tmp, &lib).unwrap();
-    }
-    lib
+    crate::common::build_plugin(source, "include")
 }
 
 fn erl_plugin_sets(lib: &Path, k: f64) -> Vec<String> {

@@ -66,3 +66,34 @@ pub fn mean(xs: &[f64]) -> f64 {
 pub fn exe() -> &'static str {
     env!("CARGO_BIN_EXE_exoleg")
 }
+
+/// Build a C file (a path under the repository) against the header folder `include` into a
+/// shared library, once per test binary and (source, include) pair.
+pub fn build_plugin(source: &str, include: &str) -> std::path::PathBuf {
+    use std::path::Path;
+    use std::process::Command;
+    static DIR: std::sync::OnceLock<tempfile::TempDir> = std::sync::OnceLock::new();
+    // One build at a time: two tests asking for the same library at once compiled it to the
+    // same temporary name, and one loaded the other's half-written file.
+    static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let root = env!("CARGO_MANIFEST_DIR");
+    let dir = DIR.get_or_init(|| tempfile::tempdir().expect("tempdir"));
+    let stem = Path::new(source).file_stem().unwrap().to_string_lossy().to_string();
+    let tag = if include == "include" { String::new() } else { format!("_{}", include.replace(['/', '.'], "_")) };
+    let lib = dir.path().join(format!("lib{stem}{tag}.so"));
+    if !lib.exists() {
+        let tmp = dir.path().join(format!("lib{stem}{tag}.{}.so", std::process::id()));
+        let o = Command::new("cc")
+            .args(["-O2", "-fPIC", "-shared", "-ffp-contract=off", "-I", include, "-o"])
+            .arg(&tmp)
+            .arg(source)
+            .arg("-lm")
+            .current_dir(root)
+            .output()
+            .expect("cc runs");
+        assert!(o.status.success(), "cc {source}: {}", String::from_utf8_lossy(&o.stderr));
+        std::fs::rename(&tmp, &lib).unwrap();
+    }
+    lib
+}
