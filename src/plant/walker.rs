@@ -51,6 +51,8 @@ pub struct WalkerPlant {
     carriage: bool,
     /// The trajectory a driven hip follows (the force reference's hip; None: not driven).
     driven_hip: Option<crate::reference::ForceReference>,
+    /// The moment arm dL/dq (m/rad) at the knee now.
+    arm_m: f64,
 }
 
 impl WalkerPlant {
@@ -98,6 +100,7 @@ impl WalkerPlant {
             lab_knee_moment_nm: 0.0,
             carriage,
             driven_hip,
+            arm_m: arm,
             model,
         };
         plant.start_step();
@@ -348,6 +351,7 @@ impl Plant for WalkerPlant {
             self.lab_knee_moment_nm = self.lab_knee_moment(&before);
         }
         let (l1, arm1, _) = cylinder_kinematics_at(self.model.spec(), self.x[KNEE]);
+        self.arm_m = arm1;
         let dl = l1 - self.piston.length_m();
         self.piston.record(l1, arm1 * self.x[NG + KNEE], force, m_eff, dt_s);
         let ankle = self.stops.ankle.filter(|_| !self.model.locked(ANKLE)).map(|_| self.x[ANKLE]);
@@ -366,7 +370,7 @@ impl Plant for WalkerPlant {
             hip_angle_deg: self.x[HIP].to_degrees(),
             cylinder_length_m: self.piston.length_m(),
             loop_closure_gap_m: 0.0,
-            moment_arm_m: cylinder_kinematics_at(self.model.spec(), k).1,
+            moment_arm_m: self.arm_m,
         })
     }
 

@@ -683,9 +683,16 @@ impl DeviceSensors {
                 (self.held[i], self.held_counts[i]) = self.read(i, x[i]);
             }
         }
-        self.line.push_back((self.held, DeviceCounts(self.held_counts)));
-        let (r, counts) =
-            if self.line.len() > self.delay { self.line.pop_front().unwrap_or_default() } else { self.line[0] };
+        let (r, counts) = if self.delay == 0 {
+            (self.held, DeviceCounts(self.held_counts))
+        } else {
+            self.line.push_back((self.held, DeviceCounts(self.held_counts)));
+            if self.line.len() > self.delay {
+                self.line.pop_front().unwrap_or_default()
+            } else {
+                self.line[0]
+            }
+        };
         let hip_rate = match r[0].is_nan() {
             true => f64::NAN,
             false => {

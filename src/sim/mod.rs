@@ -408,13 +408,8 @@ impl Simulation {
         let (x, dx) = (Extra { mech: &self.mech_state, ctrl: &[] }, self.mech_scratch(&mut dmech));
         let s0 = d.evaluate(t, &self.state, x, dx, self.plant.as_ref(), &self.held);
         let truth = d.truth(&self.state, &self.mech_state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held);
-        let device_truth = self.device_truth(t, s0.force_rate_n_per_s);
         let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
         let (y, counts) = l.sensors.sample(&truth);
-        let (device, device_counts) = match (&mut l.device, device_truth) {
-            (Some(dev), Some(dt)) => dev.sample(&dt),
-            _ => Default::default(),
-        };
         l.sampled = Some(self.k);
         l.awaiting = Some(self.k);
         // The outer loop compares each reading with the reference at the reading's time,
@@ -430,6 +425,15 @@ impl Simulation {
         let d = Dynamics { sc: &self.sc, controller: None, memo: &self.ref_memo };
         self.held.knee_integral_rad_s = d.pd_integral(t_reading, self.held.knee_integral_rad_s, y.knee_rad, period);
         self.held.pd_force_n = d.pd_force(t_reading, y.knee_rad, knee_rate, self.held.knee_integral_rad_s);
+        // The device's truth with the outer loop's force as the step will hold it (as the
+        // row records it).
+        let device_truth = self.device_truth(t, s0.force_rate_n_per_s);
+        let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
+        let (device, device_counts) = match (&mut l.device, device_truth) {
+            (Some(dev), Some(dt)) => dev.sample(&dt),
+            _ => Default::default(),
+        };
+        let d = Dynamics { sc: &self.sc, controller: None, memo: &self.ref_memo };
         let r = d.reference_at(t, &self.held);
         let r_next = d.reference_at(t + period, &self.held);
         Ok(SampleInput {

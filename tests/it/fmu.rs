@@ -188,6 +188,11 @@ fn description_lists_readings_input_parameters_and_units() {
     unique.sort();
     unique.dedup();
     assert_eq!(unique.len(), names.len(), "names are unique");
+    // ABI 1.1's readings take new value references after the force loop's 0-16, which keep
+    // their meaning; the device's truth columns follow the contact columns.
+    assert_eq!((vr_of(&slave, "force_n"), vr_of(&slave, "valve_command_limit")), (2, 16));
+    assert_eq!((vr_of(&slave, "hip_rad"), vr_of(&slave, "load_pressure_pa")), (17, 39));
+    assert!(names.contains(&"true_shank_cuff_force_n") && names.contains(&"true_wearer_knee_torque_nm"));
     let copied = std::fs::read(u.resources.join("files/wbds02_overground_slow.csv")).expect("the gait file travels");
     assert_eq!(copied, std::fs::read(Path::new(ROOT).join("assets/gait/wbds02_overground_slow.csv")).unwrap());
     let text = std::fs::read_to_string(u.resources.join("scenario.toml")).unwrap();
