@@ -133,7 +133,7 @@ class PhaseAssist:
         u = (xv + self.tau * dxv) / self.ks
         return {
             "valve_command": u,
-            "gait_phase_pct": phase,
+            "gait_phase_pct": phase if self.have_hs else math.nan,  # no estimate before the first heel strike
             "force_desired_n": f_des,
             "stride_s": stride_est,
             "safety_tripped": float(self.tripped),

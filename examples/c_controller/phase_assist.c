@@ -192,7 +192,7 @@ int32_t exoleg_step(void *instance, const ExolegReadings *y, ExolegCommand *cmd)
     double xv = (c->kf * (f_des - f) + c->n3 * f + c->n2 * v) / c->n1;
     double dxv = ((c->n3 - c->kf) * df + c->n2 * y->piston_accel_m_s2) / c->n1;
     cmd->valve_command = (xv + c->tau * dxv) / c->ks;
-    cmd->log[0] = phase;
+    cmd->log[0] = c->have_hs ? phase : NAN; /* no estimate before the first heel strike */
     cmd->log[1] = f_des;
     cmd->log[2] = stride_est;
     cmd->log[3] = c->tripped;

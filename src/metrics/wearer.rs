@@ -15,8 +15,9 @@
 //! - Hydraulic energy: the supply pressure times the flow the valve draws from the supply.
 //! - True heel strike: the vertical ground reaction rising over [`super::walking::STANCE_CONTACT_N`]
 //!   after the foot was off the ground (under [`super::walking::NO_CONTACT_N`]). The
-//!   controller's: its logged phase falling by more than 50 points (a wrap). Latency:
-//!   detection minus the last true heel strike (within half a stride). Phase error: the
+//!   controller's: its logged phase falling by more than 50 points (a wrap), or its first
+//!   estimate after NaN (none yet) below 50. Latency: the detection nearest each true heel
+//!   strike within half a stride, before (negative: early) or after it. Phase error: the
 //!   logged phase against `100 (t - t_HS) / (t_HS,next - t_HS)`, wrapped to +-50 points.
 
 use super::walking::{NO_CONTACT_N, STANCE_CONTACT_N};
@@ -213,16 +214,20 @@ struct PhaseScore {
     /// The foot has been off the ground since the last heel strike.
     off: bool,
     last_hs: Option<f64>,
-    heel_strikes: usize,
+    /// The true heel strikes and the controller's detections (s; at most
+    /// [`super::MAX_STRIDES`] each).
+    strikes: Vec<f64>,
+    detections: Vec<f64>,
     /// The current stride's (t, logged phase).
     stride: Vec<(f64, f64)>,
     last_phase: Option<f64>,
-    latencies: Vec<f64>,
     errors: Rms,
 }
 
 impl PhaseScore {
-    fn row(&mut self, t: f64, vertical_n: f64, phase: Option<f64>, stride_s: f64) {
+    /// One row; heel strikes count from `settled` on (detections before it still pair with
+    /// the first one).
+    fn row(&mut self, t: f64, vertical_n: f64, phase: Option<f64>, settled: bool) {
         if vertical_n < NO_CONTACT_N {
             self.off = true;
         }
@@ -236,27 +241,40 @@ impl PhaseScore {
                 }
             }
             self.stride.clear();
-            self.last_hs = Some(t);
-            self.heel_strikes += 1;
+            self.last_hs = Some(t).filter(|_| settled);
+            if settled && self.strikes.len() < super::MAX_STRIDES {
+                self.strikes.push(t);
+            }
         }
         let Some(p) = phase else { return };
-        if self.last_hs.is_some() && self.stride.len() < MAX_STRIDE_ROWS {
+        if self.last_hs.is_some() && self.stride.len() < MAX_STRIDE_ROWS && !p.is_nan() {
             self.stride.push((t, p));
         }
-        if let (Some(prev), Some(hs)) = (self.last_phase, self.last_hs) {
-            let latency = t - hs;
-            if prev - p > 50.0 && latency <= 0.5 * stride_s {
-                self.latencies.push(latency);
+        // A detection: the phase wraps (falls by more than 50 points), or a first estimate
+        // (after NaN: none yet) starts in the stride's first half.
+        if let Some(prev) = self.last_phase {
+            let wrap = prev - p > 50.0 || (prev.is_nan() && p < 50.0);
+            if wrap && self.detections.len() < super::MAX_STRIDES {
+                self.detections.push(t);
             }
         }
         self.last_phase = Some(p);
     }
 
-    fn finish(&self) -> PhaseEstimate {
-        let mut l = self.latencies.clone();
+    /// Each true heel strike paired with the nearest detection within half a stride
+    /// (`stride_s`, s) of it, before or after.
+    fn finish(&self, stride_s: f64) -> PhaseEstimate {
+        let mut l: Vec<f64> = self
+            .strikes
+            .iter()
+            .filter_map(|hs| {
+                let d = self.detections.iter().map(|d| d - hs).filter(|x| x.abs() <= 0.5 * stride_s);
+                d.min_by(|a, b| a.abs().total_cmp(&b.abs()))
+            })
+            .collect();
         l.sort_by(f64::total_cmp);
         PhaseEstimate {
-            heel_strikes: self.heel_strikes,
+            heel_strikes: self.strikes.len(),
             detected: l.len(),
             median_latency_s: (!l.is_empty()).then(|| l[l.len() / 2]),
             max_latency_s: l.iter().map(|x| x.abs()).reduce(f64::max),
@@ -362,7 +380,7 @@ impl WearerMetrics {
             shank_cuff: self.cuffs[1].finish(self.rows, l.comfort_n, l.shank_pain_n),
             knee_range_deg: self.knee,
             data_knee_range_deg: data_knee,
-            phase_estimate: self.phase_log.map(|_| self.phase.finish()),
+            phase_estimate: self.phase_log.map(|_| self.phase.finish(self.data.gait.stride_s)),
             cycle: self.cycle(),
         })
     }
@@ -378,7 +396,11 @@ impl RecordSink for WearerMetrics {
         let (Some(d), Some(leg)) = (r.device, r.leg) else { return Ok(()) };
         let dt = self.last_t.map_or(0.0, |t| r.t_s - t);
         self.last_t = Some(r.t_s);
-        if r.t_s < self.settle_s - 1e-9 {
+        let vertical = r.contact.map_or(0.0, |c| c.ground_reaction_vertical_n);
+        let logged = self.phase_log.map(|k| r.log[k]);
+        let settled = r.t_s >= self.settle_s - 1e-9;
+        self.phase.row(r.t_s, vertical, logged, settled);
+        if !settled {
             return Ok(());
         }
         self.span = Some((self.span.map_or(r.t_s, |s| s.0), r.t_s));
@@ -405,9 +427,6 @@ impl RecordSink for WearerMetrics {
         for (acc, v) in b.1.iter_mut().zip([dev, bio, d.thigh_cuff_force_n, d.shank_cuff_force_n, leg.knee_angle_deg]) {
             *acc += v;
         }
-        let vertical = r.contact.map_or(0.0, |c| c.ground_reaction_vertical_n);
-        let logged = self.phase_log.map(|k| r.log[k]);
-        self.phase.row(r.t_s, vertical, logged, self.data.gait.stride_s);
         Ok(())
     }
 }
@@ -427,9 +446,9 @@ mod tests {
             let in_stride = t.rem_euclid(stride);
             let vertical = if in_stride < 0.6 { 700.0 } else { 0.0 };
             let est = 100.0 * ((t - late).rem_euclid(stride)) / stride;
-            s.row(t, vertical, Some(est), stride);
+            s.row(t, vertical, Some(est), true);
         }
-        let e = s.finish();
+        let e = s.finish(stride);
         // The run starts in stance: the first heel strike it counts is the second stride's.
         assert_eq!(e.heel_strikes, 4);
         assert!((e.median_latency_s.unwrap() - late).abs() < 1.5 * dt, "{e:?}");
