@@ -34,6 +34,7 @@ pub mod cli;
 pub mod control;
 pub mod disturbance;
 pub mod error;
+pub mod faults;
 pub mod fmu;
 pub mod human;
 pub mod hydraulics;

@@ -129,6 +129,9 @@ pub struct Row {
     pub contact: Option<ContactRow>,
     /// What the device does and its sensors measure (leg runs).
     pub device: Option<DeviceRow>,
+    /// A fault is active, or the device is in its fail-safe state after its controller
+    /// stopped (runs with `[[faults]]` or `controller.on_stop = "failsafe"`).
+    pub fault_active: bool,
     /// The controller's logged channels (the first `layout.log.len()` are used).
     pub log: [f64; MAX_LOGGED],
 }
@@ -147,6 +150,8 @@ pub struct Layout {
     pub contact: bool,
     /// The device's columns.
     pub device: bool,
+    /// The `fault_active` column.
+    pub faults: bool,
     /// The controller's logged channels (columns `log_<name>`, last).
     pub log: Vec<String>,
 }
@@ -221,6 +226,7 @@ impl Layout {
             + if self.leg { LEG_COLUMNS.len() } else { 0 }
             + if self.contact { CONTACT_COLUMNS.len() } else { 0 }
             + if self.device { DEVICE_COLUMNS.len() } else { 0 }
+            + usize::from(self.faults)
             + self.log.len().min(MAX_LOGGED)
     }
 
@@ -238,6 +244,9 @@ impl Layout {
         }
         if self.device {
             n.extend(DEVICE_COLUMNS.iter().map(|c| c.to_string()));
+        }
+        if self.faults {
+            n.push("fault_active".into());
         }
         n.extend(self.log.iter().map(|l| format!("log_{l}")));
         n
@@ -320,6 +329,9 @@ impl Row {
                 d.hydraulic_power_w,
                 d.device_knee_moment_nm,
             ]);
+        }
+        if layout.faults {
+            out.push(flag(self.fault_active));
         }
         out.extend_from_slice(&self.log[..layout.log.len().min(MAX_LOGGED)]);
     }

@@ -131,6 +131,22 @@ pub struct ControllerParams {
     /// `plugin`: the shared library and its parameters.
     #[serde(skip_serializing_if = "PluginParams::is_unset")]
     pub plugin: PluginParams,
+    /// What a sampled controller's stop (a plugin's stop status, a Python controller's
+    /// exception) does: `end` (default: the run ends, exit 3) or `failsafe` (the device goes
+    /// to `actuator.failsafe` and the run goes on: the controller's reaction to a fault,
+    /// scored; the `faults` campaign's).
+    pub on_stop: OnStop,
+}
+
+/// `controller.on_stop`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum OnStop {
+    /// The run ends (exit 3).
+    #[default]
+    End,
+    /// The device goes to its fail-safe state; the run goes on.
+    Failsafe,
 }
 
 impl Default for ControllerParams {
@@ -150,6 +166,7 @@ impl Default for ControllerParams {
             nominal: NominalParams::default(),
             nominal_leg: NominalLeg::default(),
             plugin: PluginParams::default(),
+            on_stop: OnStop::End,
         }
     }
 }

@@ -24,6 +24,19 @@ pub enum ForceSource {
     Reference,
 }
 
+/// What the device does without power (`actuator.failsafe`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Failsafe {
+    /// The spring-centred spool closes the valve: the knee is held by the oil (a hydraulic
+    /// lock, as tight as the valve's and the cylinder's leakage allow).
+    #[default]
+    Locked,
+    /// A normally open bypass valve connects the chambers: the knee is free but for the seal
+    /// friction and the bypass's flow resistance.
+    Free,
+}
+
 /// Actuator parameters (scenario section `[actuator]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -40,6 +53,12 @@ pub struct ActuatorParams {
     pub spool_limit_m: f64,
     /// Clamp the load force to what the supply pressure can give, [-p_s*A2, p_s*A1]. Default true.
     pub pressure_limit: bool,
+    /// What the device does without power (a `power` fault, a controller's stop in a fault
+    /// campaign): `locked` (default) or `free`.
+    pub failsafe: Failsafe,
+    /// The fail-safe bypass valve's orifice area when it opens (`failsafe = "free"`, m^2).
+    /// Default 2e-5 (20 mm^2). > 0.
+    pub failsafe_bypass_area_m2: f64,
 }
 
 impl Default for ActuatorParams {
@@ -51,6 +70,8 @@ impl Default for ActuatorParams {
             valve_command_limit: 0.0,
             spool_limit_m: 0.0,
             pressure_limit: true,
+            failsafe: Failsafe::Locked,
+            failsafe_bypass_area_m2: 2e-5,
         }
     }
 }

@@ -45,6 +45,50 @@ pub struct ForceRates {
     pub mean_pressure_pa_s: f64,
 }
 
+/// What faults do to the valve and the cylinder over a step (`crate::faults`: the loop sets it
+/// from the faults active at the step's start).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ValveFaults {
+    /// The spool is stuck where it is (its rate 0).
+    pub spool_stuck: bool,
+    /// The spool's time constant times this (1: normal).
+    pub spool_tau_factor: f64,
+    /// A bypass across the piston: `k` of `Q = k sign(dp) sqrt(|dp|)` (m^3/(s Pa^0.5), `C_d A
+    /// sqrt(2/rho)`), 0: none.
+    pub bypass_k: f64,
+    /// The supply pressure's fraction left (1: normal).
+    pub supply_factor: f64,
+    /// No power: the valve's command is 0.
+    pub power_off: bool,
+}
+
+impl ValveFaults {
+    /// No fault.
+    pub const NONE: ValveFaults =
+        ValveFaults { spool_stuck: false, spool_tau_factor: 1.0, bypass_k: 0.0, supply_factor: 1.0, power_off: false };
+
+    /// Whether nothing is faulty.
+    pub fn is_none(&self) -> bool {
+        *self == Self::NONE
+    }
+}
+
+impl Default for ValveFaults {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+/// Pressure difference (Pa) below which the bypass orifice's flow is laminar-like (a
+/// regularisation of `sqrt(|dp|)`, whose slope is infinite at 0): `Q = k dp / (dp^2 +
+/// dp_t^2)^(1/4)`, within 0.003 % of the orifice equation above 1 MPa.
+pub const BYPASS_TRANSITION_PA: f64 = 1e4;
+
+/// The bypass flow (m^3/s, from A to B) at a pressure difference `dp` (Pa, p_A - p_B).
+pub fn bypass_flow_m3_s(k: f64, dp: f64) -> f64 {
+    k * dp / (dp * dp + BYPASS_TRANSITION_PA * BYPASS_TRANSITION_PA).sqrt().sqrt()
+}
+
 /// Which plant integrates the force channel.
 #[derive(Debug, Clone, PartialEq)]
 enum Chambers {
@@ -223,6 +267,133 @@ impl Cylinder {
             }
         }
         d
+    }
+
+    /// The two-chamber model with the supply a fault leaves (None for the linear model).
+    fn chambers_with(&self, f: &ValveFaults) -> Option<TwoChamber> {
+        match &self.chambers {
+            Chambers::Two(tc) if f.supply_factor != 1.0 => Some(tc.with_supply(tc.p_s * f.supply_factor)),
+            Chambers::Two(tc) => Some(tc.clone()),
+            Chambers::Linear => None,
+        }
+    }
+
+    /// The force bounds with the supply a fault leaves (N).
+    fn bounds_with(&self, f: &ValveFaults) -> (f64, f64) {
+        let (lo, hi) = self.force_bounds_n;
+        (lo * f.supply_factor, hi * f.supply_factor)
+    }
+
+    /// [`Self::rates`] under the faults `f` (the same arithmetic without any): the supply's
+    /// fraction scales the linear valve's flow gain by its square root and the force bounds by
+    /// itself (the two-chamber model's orifices see the lower supply pressure), and the bypass
+    /// takes its flow out of chamber A into B.
+    pub fn rates_with(
+        &self,
+        h: &HydraulicState,
+        piston: &PistonKinematics,
+        inp: &ForceChannelInput,
+        f: &ValveFaults,
+    ) -> ForceRates {
+        if f.bypass_k == 0.0 && f.supply_factor == 1.0 {
+            return self.rates(h, piston, inp);
+        }
+        let (pa, pb) = self.pressures_pa(h);
+        let q = bypass_flow_m3_s(f.bypass_k, pa - pb);
+        let (raw, mean) = match self.chambers_with(f) {
+            None => {
+                let c = &self.coeffs;
+                let x = h.channel();
+                let sum = self.areas_m2.0 + self.areas_m2.1;
+                let r = c.n1 * f.supply_factor.sqrt() * x.spool_m - c.n2 * inp.piston_velocity_m_s - c.n3 * x.force_n
+                    + c.n4
+                    + inp.force_rate_dist_n_per_s
+                    + x.accel_dist_n_per_s
+                    - c.n2 * 2.0 / sum * q;
+                (r, 0.0)
+            }
+            Some(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, h.mean_pressure_pa);
+                let extra = inp.force_rate_dist_n_per_s + h.accel_dist_n_per_s;
+                let (mut d1, mut d2) =
+                    tc.pressure_rates(p1, p2, h.spool_m, piston.position_m, piston.velocity_m_s, extra);
+                let (l1, l2) = tc.transfer_rates(piston.position_m, q);
+                (d1, d2) = (d1 + l1, d2 + l2);
+                let (df, _) = tc.force_and_mean(d1, d2);
+                (df, 0.5 * (d1 + d2))
+            }
+        };
+        let (lo, hi) = self.bounds_with(f);
+        let out = (h.force_n >= hi && raw > 0.0) || (h.force_n <= lo && raw < 0.0);
+        let load_cell = if self.chambers_with(f).is_none() && out { 0.0 } else { raw };
+        ForceRates { raw_n_per_s: raw, load_cell_n_per_s: load_cell, mean_pressure_pa_s: mean }
+    }
+
+    /// [`Self::derivatives`] under the faults `f`: a stuck spool does not move, a slow one
+    /// moves with its time constant times the factor, the force bounds follow the supply.
+    pub fn derivatives_with(
+        &self,
+        h: &HydraulicState,
+        inp: &ForceChannelInput,
+        rates: &ForceRates,
+        f: &ValveFaults,
+    ) -> HydraulicState {
+        let mut d = self.derivatives(h, inp, rates);
+        if f.is_none() {
+            return d;
+        }
+        if f.spool_stuck {
+            d.spool_m = 0.0;
+        } else if f.spool_tau_factor != 1.0 {
+            d.spool_m = (self.coeffs.k_s * inp.valve_command - h.spool_m) / (self.coeffs.tau_s * f.spool_tau_factor)
+                + inp.spool_dist_m_per_s;
+        }
+        if matches!(self.chambers, Chambers::Linear) {
+            let (lo, hi) = self.bounds_with(f);
+            if (h.force_n >= hi && d.force_n > 0.0) || (h.force_n <= lo && d.force_n < 0.0) {
+                d.force_n = 0.0;
+            }
+        }
+        d
+    }
+
+    /// [`Self::end_step`] under the faults `f` (the force bounds of the supply left).
+    pub fn end_step_with(&self, h: &mut HydraulicState, missed: Option<(f64, f64)>, f: &ValveFaults) {
+        if f.supply_factor == 1.0 {
+            return self.end_step(h, missed);
+        }
+        if let Some((xc_m, dx_m)) = missed {
+            self.apply_stroke(h, xc_m, dx_m);
+        }
+        let sl = self.spool_limit_m;
+        if sl > 0.0 {
+            h.spool_m = h.spool_m.clamp(-sl, sl);
+        }
+        match self.chambers_with(f) {
+            None => {
+                let (lo, hi) = self.bounds_with(f);
+                h.force_n = h.force_n.clamp(lo, hi);
+            }
+            Some(tc) => {
+                let (p1, p2) = tc.pressures(h.force_n, h.mean_pressure_pa);
+                let (p1, p2) = tc.clamp(p1, p2);
+                (h.force_n, h.mean_pressure_pa) = tc.force_and_mean(p1, p2);
+            }
+        }
+    }
+
+    /// [`Self::local_stiffness`] with a bypass's flow (its slope at the pressure difference
+    /// now: at most `k / sqrt(dp_t)`) and a slow spool.
+    pub fn local_stiffness_with(&self, h: &HydraulicState, piston_position_m: f64, f: &ValveFaults) -> (f64, f64) {
+        let (mut rate, k) = self.local_stiffness(h, piston_position_m);
+        if f.bypass_k > 0.0 {
+            // d(dp)/dF for the linear model's pressures: 2 / (A1 + A2); the two-chamber
+            // chambers' pressures move with their own volumes, of the same order.
+            let sum = self.areas_m2.0 + self.areas_m2.1;
+            let slope = f.bypass_k / BYPASS_TRANSITION_PA.sqrt();
+            rate = rate.max(self.coeffs.n2 * 2.0 / sum * slope * 2.0 / sum);
+        }
+        (rate, k)
     }
 
     /// Whether the cylinder is at its force limit (linear: a bound; two chambers: a pressure

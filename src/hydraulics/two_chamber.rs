@@ -156,6 +156,19 @@ impl TwoChamber {
         self.k_o * x_v.abs() * drop.max(0.0).sqrt()
     }
 
+    /// The same cylinder with another supply pressure `p_s` (Pa; a supply fault).
+    pub fn with_supply(&self, p_s: f64) -> Self {
+        Self { p_s: p_s.max(self.p_r), ..self.clone() }
+    }
+
+    /// Pressure rates (Pa/s) of a flow `q` (m^3/s) from chamber 1 to chamber 2 at piston
+    /// position `xc` (a bypass across the piston).
+    pub fn transfer_rates(&self, xc: f64, q: f64) -> (f64, f64) {
+        let v1 = (self.v1_0 + self.a1 * xc).max(0.05 * self.v1_0);
+        let v2 = (self.v2_0 - self.a2 * xc).max(0.05 * self.v2_0);
+        (-self.beta / v1 * q, self.beta / v2 * q)
+    }
+
     /// Clamp pressures to [p_r, p_s].
     pub fn clamp(&self, p1: f64, p2: f64) -> (f64, f64) {
         (p1.clamp(self.p_r, self.p_s), p2.clamp(self.p_r, self.p_s))

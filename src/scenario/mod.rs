@@ -4,11 +4,13 @@
 //! Every key has a default, so a scenario file lists only what it changes; unknown keys are
 //! an error. The embedded default scenario is the paper's Figure 5 case.
 
+mod faults;
 mod files;
 mod overrides;
 mod resolve;
 pub(crate) mod validate;
 
+pub use faults::*;
 pub use files::*;
 pub use resolve::*;
 
@@ -264,6 +266,9 @@ pub struct ScenarioFile {
     /// `[cuff_limits]`: the comfort and pain limits of the cuff interaction forces (the
     /// wearer's figures of walking runs).
     pub cuff_limits: crate::metrics::CuffLimits,
+    /// `[[faults]]`: what breaks, when (see `crate::faults`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<crate::faults::FaultSpec>,
     /// What the run records.
     pub output: OutputSection,
     /// The wearer's body: scales the built-in leg and sets the subject's mass.
@@ -326,6 +331,7 @@ impl Default for ScenarioFile {
             metrics: MetricsSection::default(),
             criteria: Criteria::default(),
             cuff_limits: crate::metrics::CuffLimits::default(),
+            faults: Vec::new(),
             output: OutputSection::default(),
             subject: None,
         }

@@ -96,25 +96,56 @@ pub(super) fn apply_value(table: &mut toml::Table, key: &str, value: toml::Value
         ));
     }
     let mut cur = table;
-    for (i, p) in parts.iter().enumerate() {
+    let mut i = 0;
+    while i < parts.len() {
+        let p = parts[i];
         if i + 1 == parts.len() {
-            match (cur.get_mut(*p), value) {
-                (Some(toml::Value::Table(old)), toml::Value::Table(new)) => merge(old, new),
-                (_, v) => {
-                    cur.insert(p.to_string(), v);
-                }
-            }
+            put(cur, p, value);
             return Ok(());
         }
         let entry = cur.entry(p.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
         cur = match entry {
             toml::Value::Table(t) => t,
+            // An array of tables (`[[faults]]`): the next segment is an index into it.
+            toml::Value::Array(a) => {
+                let at = parts[..=i + 1].join(".");
+                let idx = parts[i + 1].parse::<usize>().map_err(|_| {
+                    Error::input("--set", key, format!("`{}` is an array: index it by number (`{p}.0`)", parts[..=i].join(".")))
+                })?;
+                let n = a.len();
+                let el = a.get_mut(idx).ok_or_else(|| {
+                    Error::input("--set", key, format!("`{at}`: the array has {n} entries (0..{})", n.saturating_sub(1)))
+                })?;
+                i += 1;
+                if i + 1 == parts.len() {
+                    match (el, value) {
+                        (toml::Value::Table(old), toml::Value::Table(new)) => merge(old, new),
+                        (el, v) => *el = v,
+                    }
+                    return Ok(());
+                }
+                match el {
+                    toml::Value::Table(t) => t,
+                    _ => return Err(Error::input("--set", key, format!("`{at}` is not a table"))),
+                }
+            }
             _ => {
                 return Err(Error::input("--set", key, format!("`{}` is not a table", parts[..=i].join("."))));
             }
         };
+        i += 1;
     }
     Ok(())
+}
+
+/// Set `key` of `t` to `value` (a table merges into the table there).
+fn put(t: &mut toml::Table, key: &str, value: toml::Value) {
+    match (t.get_mut(key), value) {
+        (Some(toml::Value::Table(old)), toml::Value::Table(new)) => merge(old, new),
+        (_, v) => {
+            t.insert(key.to_string(), v);
+        }
+    }
 }
 
 /// A `--set` value: TOML if it parses, else a string (see [`apply_set`]).

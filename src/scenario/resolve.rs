@@ -719,7 +719,20 @@ impl Scenario {
             ),
             None => None,
         };
+        let walking = matches!(&plant, PlantSetup::Leg(l) if l.ground.is_some()
+            && l.body.as_ref().is_some_and(|b| matches!(b.targets, crate::human::BodyTargets::Walking(_))));
+        let fcx = crate::scenario::FaultContext {
+            duration_s: f.sim.duration_s,
+            settle_s: f.metrics.settle_s,
+            sample_period_s: f.controller.sample_period_s,
+            walking,
+            leg: leg.is_some(),
+            sensors: &f.sensors,
+        };
+        let faults = crate::scenario::resolve_faults(&f.faults, &fcx).map_err(|(k, m)| Error::input(&self.source_name, k, m))?;
         let model = Model {
+            faults,
+            on_stop: f.controller.on_stop,
             device_columns: leg.is_some() && device.is_some(),
             device,
             source_name: self.source_name.clone(),

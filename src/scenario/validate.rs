@@ -457,6 +457,7 @@ fn sensors_and_actuator(c: &Check, f: &ScenarioFile) -> Result<()> {
         ));
     }
     c.non_negative("actuator.valve_command_limit", f.actuator.valve_command_limit)?;
+    c.positive("actuator.failsafe_bypass_area_m2", f.actuator.failsafe_bypass_area_m2)?;
     c.non_negative("actuator.spool_limit_m", f.actuator.spool_limit_m)?;
     if f.actuator.mode != ActuatorMode::Hydraulic && f.plant.kind == PlantKind::Bench {
         return Err(c.fail("actuator.mode", "`force` and `free` drive a leg; the bench has no mechanics to drive"));

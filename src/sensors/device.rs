@@ -669,6 +669,11 @@ impl DeviceSensors {
     /// Take one sample of the device at a controller sample instant: the readings and their
     /// raw A/D counts.
     pub fn sample(&mut self, truth: &DeviceTruth) -> (DeviceReadings, DeviceCounts) {
+        self.sample_with(truth, None)
+    }
+
+    /// [`Self::sample`] with the run's sensor faults (see `SampledSensors::sample_with`).
+    pub fn sample_with(&mut self, truth: &DeviceTruth, faults: Option<super::FaultHook>) -> (DeviceReadings, DeviceCounts) {
         let k = self.samples;
         self.samples += 1;
         let update = self.setup.every.map(|e| k.is_multiple_of(e));
@@ -683,7 +688,7 @@ impl DeviceSensors {
                 (self.held[i], self.held_counts[i]) = self.read(i, x[i]);
             }
         }
-        let (r, counts) = if self.delay == 0 {
+        let (mut r, mut counts) = if self.delay == 0 {
             (self.held, DeviceCounts(self.held_counts))
         } else {
             self.line.push_back((self.held, DeviceCounts(self.held_counts)));
@@ -693,6 +698,9 @@ impl DeviceSensors {
                 self.line[0]
             }
         };
+        if let Some((f, t, active)) = faults {
+            f.apply(t, super::CHANNELS.len(), &mut r, &mut counts.0, active);
+        }
         let hip_rate = match r[0].is_nan() {
             true => f64::NAN,
             false => {

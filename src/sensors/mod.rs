@@ -13,8 +13,10 @@
 //! disturbances the observer exists to see).
 
 mod device;
+mod faults;
 mod hold;
 pub use device::*;
+pub use faults::*;
 pub use hold::*;
 
 use rand::SeedableRng;
@@ -366,6 +368,9 @@ impl Adc {
     }
 }
 
+/// The run's sensor faults, the sample's time (s) and each fault's onset while it is active.
+pub type FaultHook<'a> = (&'a mut SensorFaults, f64, &'a dyn Fn(usize) -> Option<f64>);
+
 /// The firmware differences' low-pass at `cutoff_hz` (0: none) sampled every `period_s`:
 /// the exact discretisation of a first-order low-pass, `alpha = 1 - exp(-2 pi fc Ts)`.
 pub fn derivative_alpha(cutoff_hz: f64, period_s: f64) -> f64 {
@@ -421,6 +426,12 @@ impl SampledSensors {
     /// Take one sample of the plant whose ideal readings are `truth`: the readings the
     /// controller sees and their raw A/D counts.
     pub fn sample(&mut self, truth: &Measurement) -> (Measurement, AdcCounts) {
+        self.sample_with(truth, None)
+    }
+
+    /// [`Self::sample`] with the run's sensor faults at the sample's time (s) and their
+    /// activity (`active(i)`: fault i's onset while it is active), applied after the delay.
+    pub fn sample_with(&mut self, truth: &Measurement, faults: Option<FaultHook>) -> (Measurement, AdcCounts) {
         let mut reading = [f64::NAN; 5];
         let mut counts = AdcCounts::default();
         for c in CHANNELS {
@@ -434,11 +445,14 @@ impl SampledSensors {
         }
         self.line.push_back((reading, counts));
         // Until the delay line fills, firmware sees its first reading.
-        let (r, counts) = if self.line.len() > self.delay {
+        let (mut r, mut counts) = if self.line.len() > self.delay {
             self.line.pop_front().unwrap_or((reading, counts))
         } else {
             self.line[0]
         };
+        if let Some((f, t, active)) = faults {
+            f.apply(t, 0, &mut r, &mut counts.0, active);
+        }
         let (ts, a) = (self.period_s, self.alpha);
         let force_rate = self.d_force.update(r[0], ts, a, truth.force_rate_n_per_s);
         let (vel, acc) = if self.enabled[4] {

@@ -41,6 +41,7 @@
 //! controller state's derivative; the cylinder's derivatives with its hard stops.
 //! After the last step the final state is recorded, so a run has `steps + 1` rows.
 
+mod faults;
 mod model;
 mod stage;
 mod state;
@@ -82,6 +83,8 @@ pub(crate) struct Held {
     pub events: Option<crate::human::GaitEvents>,
     /// The body's forces on the carriage over the step (from the body's state at its start).
     pub body: Option<crate::human::BodyForces>,
+    /// What faults do to the valve and the cylinder over the step.
+    pub valve: crate::hydraulics::ValveFaults,
 }
 
 /// The sampled controller's side of the loop: sensors, hold, and the controller (or none when
@@ -91,6 +94,8 @@ struct SampledLoop {
     sensors: SampledSensors,
     /// The device's own sensors.
     device: Option<DeviceSensors>,
+    /// The sensor faults and their state.
+    sensor_faults: crate::sensors::SensorFaults,
     hold: ZeroOrderHold<ControlOutput>,
     /// The step whose sample was taken and still needs its command (`hold`).
     awaiting: Option<usize>,
@@ -148,6 +153,8 @@ pub struct Simulation {
     begun: Option<usize>,
     max_substeps: usize,
     substepped_steps: usize,
+    /// The run's faults as they happen.
+    faults: faults::FaultRun,
 }
 
 /// Build the plant of a model.
@@ -227,6 +234,7 @@ impl Simulation {
         let output = matches!(control, ControlBlock::Sampled(_)).then(ControlOutput::default);
         let held = Held { output, events: Self::gait_events(&sc), ..Default::default() };
         Ok(Self {
+            faults: faults::FaultRun::new(&sc.faults, sc.seed),
             controller_state: vec![0.0; controller_names.len()],
             mech_state: vec![0.0; mech_names.len()],
             mech_names,
@@ -265,6 +273,7 @@ impl Simulation {
             leg: self.plant.leg_row().is_some(),
             contact: self.plant.contact_row().is_some(),
             device: self.sc.device_columns,
+            faults: !self.sc.faults.is_empty() || self.sc.on_stop == crate::control::OnStop::Failsafe,
             log: self.log_names(),
         }
     }
@@ -361,6 +370,9 @@ impl Simulation {
             e.update(t, c.ground_reaction_vertical_n);
         }
         self.held.body = self.body_forces(t);
+        if !self.sc.faults.is_empty() || self.faults.stopped.is_some() {
+            self.update_faults(t);
+        }
         // The stance weight may have changed with the events (and step 0's start on the
         // trajectory asked before they were read).
         self.ref_memo.borrow_mut().clear();
@@ -408,8 +420,11 @@ impl Simulation {
         let (x, dx) = (Extra { mech: &self.mech_state, ctrl: &[] }, self.mech_scratch(&mut dmech));
         let s0 = d.evaluate(t, &self.state, x, dx, self.plant.as_ref(), &self.held);
         let truth = d.truth(&self.state, &self.mech_state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held);
+        let active: Vec<Option<f64>> = (0..self.sc.faults.len()).map(|i| self.fault_active(i, t)).collect();
+        let at = |i: usize| active[i];
         let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
-        let (y, counts) = l.sensors.sample(&truth);
+        let hook = (!l.sensor_faults.is_empty()).then_some((&mut l.sensor_faults, t, &at as &dyn Fn(usize) -> Option<f64>));
+        let (y, counts) = l.sensors.sample_with(&truth, hook);
         l.sampled = Some(self.k);
         l.awaiting = Some(self.k);
         // The outer loop compares each reading with the reference at the reading's time,
@@ -429,10 +444,14 @@ impl Simulation {
         // row records it).
         let device_truth = self.device_truth(t, s0.force_rate_n_per_s);
         let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
+        let hook = (!l.sensor_faults.is_empty()).then_some((&mut l.sensor_faults, t, &at as &dyn Fn(usize) -> Option<f64>));
         let (device, device_counts) = match (&mut l.device, device_truth) {
-            (Some(dev), Some(dt)) => dev.sample(&dt),
+            (Some(dev), Some(dt)) => dev.sample_with(&dt, hook),
             _ => Default::default(),
         };
+        if !self.sc.faults.is_empty() || self.faults.stopped.is_some() {
+            self.sample_controller_faults(t);
+        }
         let d = Dynamics { sc: &self.sc, controller: None, memo: &self.ref_memo };
         let r = d.reference_at(t, &self.held);
         let r_next = d.reference_at(t + period, &self.held);
@@ -481,6 +500,7 @@ impl Simulation {
             });
         }
         let out = self.sc.valve_limit.apply(out);
+        let out = if self.sc.faults.is_empty() && self.faults.stopped.is_none() { out } else { self.timed_output(out) };
         let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
         if l.awaiting != Some(self.k) {
             return Err(Error::Usage(format!("hold() at step {} without sample() first", self.k)));
@@ -526,15 +546,26 @@ impl Simulation {
         }
         let input = self.sample()?;
         let t = input.t_s;
+        let skip = self.faults.skip;
         let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
         let Some(ctrl) = l.ctrl.as_mut() else {
             return Err(Error::Usage(format!("step {}: a sample instant needs a command (hold)", self.k)));
         };
-        let out = ctrl.update(&input).map_err(|e| Error::ControllerStopped {
-            time_s: t,
-            controller: ctrl.kind().to_string(),
-            message: e.message,
-        })?;
+        if skip {
+            // A skipped or lost sample, or a controller in its fail-safe state: not called.
+            let last = l.hold.value();
+            return self.hold(last);
+        }
+        let out = match ctrl.update(&input) {
+            Ok(out) => out,
+            Err(e) if self.sc.on_stop == crate::control::OnStop::Failsafe => {
+                self.go_failsafe(t, e.message);
+                ControlOutput::default()
+            }
+            Err(e) => {
+                return Err(Error::ControllerStopped { time_s: t, controller: ctrl.kind().to_string(), message: e.message })
+            }
+        };
         self.hold(out)
     }
 
@@ -644,7 +675,7 @@ impl Simulation {
             };
             (self.plant.piston_at(t + dt).position_m, stroke - seen)
         });
-        self.sc.cylinder.end_step(&mut self.state.hyd, missed);
+        self.sc.cylinder.end_step_with(&mut self.state.hyd, missed, &self.held.valve);
         self.k += 1;
         self.check(t + dt)
     }
@@ -664,6 +695,7 @@ impl Simulation {
         if let ControlBlock::Sampled(l) = &self.control {
             row.log = l.log;
         }
+        row.fault_active = self.any_fault_active(t);
         sink.row(&row)?;
         let cuff_force_n = if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 };
         // The integrator's first stage is s0 unless coupled mechanics now see another cuff force.
@@ -721,7 +753,7 @@ impl Simulation {
             Some(_) => self.state.piston.position_m,
             None => self.plant.piston_at(t).position_m,
         };
-        let (rate, k_oil) = self.sc.cylinder.local_stiffness(&self.state.hyd, xc);
+        let (rate, k_oil) = self.sc.cylinder.local_stiffness_with(&self.state.hyd, xc, &self.held.valve);
         // Each stiffness with the fraction of the stability limit it may use: the leg's contact
         // dampers and springs, whose modes are damped, use more of it than the hydraulics.
         let mut real = (rate, "hydraulic pressure / load force", STABILITY_MARGIN);
@@ -849,6 +881,7 @@ impl Simulation {
         if let ControlBlock::Sampled(l) = &self.control {
             row.log = l.log;
         }
+        row.fault_active = self.any_fault_active(t);
         row
     }
 
@@ -866,6 +899,7 @@ impl SampledLoop {
         Self {
             ctrl,
             sensors: SampledSensors::new(&sc.sensors, sc.sample_period_s, sc.seed),
+            sensor_faults: crate::sensors::SensorFaults::new(&sc.faults, sc.seed),
             device: sc.device.clone().map(|d| {
                 let alpha = crate::sensors::derivative_alpha(sc.sensors.derivative_cutoff_hz, sc.sample_period_s);
                 DeviceSensors::new(d, sc.sample_period_s, sc.sensors.delay_samples, alpha, sc.seed)

@@ -65,6 +65,10 @@ pub struct Model {
     pub device_columns: bool,
     /// Metric settings.
     pub metrics: MetricSettings,
+    /// What breaks, when (`[[faults]]`).
+    pub faults: Vec<crate::faults::Fault>,
+    /// What a sampled controller's stop does (`controller.on_stop`).
+    pub on_stop: crate::control::OnStop,
     /// The cuff interaction-force limits of the wearer's figures (`[cuff_limits]`).
     pub cuff_limits: crate::metrics::CuffLimits,
 }

@@ -197,6 +197,7 @@ impl Dynamics<'_> {
         s: &State,
         piston: &PistonMotion,
         r: &RefSample,
+        held: &Held,
     ) -> (ForceChannelInput, ForceRates, f64) {
         let f = self.sc;
         let (dist, seed) = (&f.disturbance, f.seed);
@@ -209,7 +210,7 @@ impl Dynamics<'_> {
             spool_dist_m_per_s: dist.spool.value(t, seed, CHANNEL_SPOOL),
         };
         let kin = PistonKinematics { position_m: piston.position_m, velocity_m_s: piston.velocity_m_s };
-        let rates = self.sc.cylinder.rates(&s.hyd, &kin, &inp);
+        let rates = self.sc.cylinder.rates_with(&s.hyd, &kin, &inp, &held.valve);
         let x2 = rates.raw_n_per_s;
         let mut d_acc = dist.force_accel.value(t, seed, CHANNEL_FORCE_ACCEL)
             + dist.state_gain_force * s.hyd.force_n
@@ -269,7 +270,7 @@ impl Dynamics<'_> {
             true => self.reference_at(t, held),
             false => RefSample::default(),
         };
-        let (mut inp, rates, d_f_rate) = self.environment(t, s, &piston, &r);
+        let (mut inp, rates, d_f_rate) = self.environment(t, s, &piston, &r, held);
         let x2 = rates.load_cell_n_per_s;
         // With a predictor, the derivative of the effective velocity is a + lead*da/dt, with
         // da/dt = (dF_L/dt - F_f'(v)*a)/m_eff: the piston acceleration the force ODE
@@ -297,7 +298,14 @@ impl Dynamics<'_> {
             (None, None) => ControlOutput::default(),
         };
         inp.valve_command = out.valve_command;
-        derivative.hyd = sc.cylinder.derivatives(&s.hyd, &inp, &rates);
+        // Without power the valve's command is 0 (its spool spring-centred).
+        let out = if held.valve.power_off {
+            inp.valve_command = 0.0;
+            ControlOutput { valve_command: 0.0, ..out }
+        } else {
+            out
+        };
+        derivative.hyd = sc.cylinder.derivatives_with(&s.hyd, &inp, &rates, &held.valve);
         match (pred, coupled) {
             (_, Some(c)) => {
                 derivative.piston.position_m = c.piston.velocity_m_s;
@@ -439,6 +447,7 @@ impl Dynamics<'_> {
             leg,
             contact: plant.contact_row(),
             device,
+            fault_active: false,
             log: Default::default(),
         }
     }

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// The top-level modules from the ground floor up: a module may import only from the layers
 /// below its own.
 const LAYERS: [&[&str]; 11] = [
-    &["error", "integrator"],
+    &["error", "integrator", "faults"],
     &["record", "hydraulics", "sensors"],
     &["disturbance", "leg"],
     &["reference"],
