@@ -92,7 +92,7 @@ fn subject_with_a_user_urdf_warns_and_a_contradiction_is_refused() {
     assert!(e.contains("subject.leg_length_m"), "{e}");
 }
 
-/// The six shipped treadmill trials with each subject's own numbers (trials.csv: mass,
+/// The six shipped treadmill trials with each subject's own numbers (assets/gait/v2/subjects.csv: mass,
 /// stature, leg length, belt speed, stride time; subject 02's stride time is an estimate) and
 /// nothing else changed meet the walking figures (README table).
 #[test]
