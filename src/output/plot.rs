@@ -199,6 +199,21 @@ fn range(panel: &Panel) -> (f64, f64) {
 /// Draw stacked panels sharing the time axis `t_span` into a PNG at `path` (atomic write);
 /// `shade`: time intervals to shade in every panel (stance phases).
 pub fn stacked_png(path: &Path, title: &str, t_span: (f64, f64), panels: &[Panel], shade: &[(f64, f64)]) -> Result<()> {
+    panels_png(path, title, "time (s)", t_span, panels, shade)
+}
+
+/// Draw stacked panels sharing an x axis (`x_label`, the span `x_span`; the series' points
+/// are (x, value)) into a PNG at `path` (atomic write); `shade`: x intervals to shade in every
+/// panel.
+pub fn panels_png(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    x_span: (f64, f64),
+    panels: &[Panel],
+    shade: &[(f64, f64)],
+) -> Result<()> {
+    let t_span = x_span;
     ensure_font();
     let (w, h) = (1200u32, 300 * panels.len() as u32 + 60);
     let mut buf = vec![0u8; (w * h * 3) as usize];
@@ -219,7 +234,7 @@ pub fn stacked_png(path: &Path, title: &str, t_span: (f64, f64), panels: &[Panel
                 .map_err(|e| perr(e.to_string()))?;
             chart
                 .configure_mesh()
-                .x_desc("time (s)")
+                .x_desc(x_label)
                 .y_desc(p.y_label)
                 .label_style(("sans-serif", 14))
                 .draw()
