@@ -9,7 +9,7 @@ mod subjects;
 mod walking;
 pub use gait::*;
 pub use knee_force::*;
-pub use subjects::{estimated_stride_s, read_subjects, StrideSource, TrialRow};
+pub use subjects::{estimated_stride_s, read_subjects, StrideSource, SubjectRow, TrialRow};
 pub use walking::*;
 
 use serde::Serialize;

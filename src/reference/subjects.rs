@@ -80,10 +80,22 @@ pub fn estimated_stride_s(speed_m_s: f64, leg_length_m: f64) -> f64 {
     2.0 / steps_per_s
 }
 
+/// A row of a `subjects.csv` as read: its line, the file it names (as written, possibly
+/// empty), and the row checked.
+#[derive(Debug)]
+pub struct SubjectRow {
+    /// The row's line in the file (1-based; the header is line 1).
+    pub line: usize,
+    /// The `file` column as written.
+    pub file: String,
+    /// The row, or why it is bad (naming the file, the row and the column).
+    pub row: Result<TrialRow>,
+}
+
 /// Read a `subjects.csv` (`name` for messages): the table's own problems (not CSV, a required
 /// column missing, too many rows) are the error; each row is checked on its own, its error
 /// naming the file, its row and its column.
-pub fn read_subjects(name: &str, text: &str) -> Result<Vec<Result<TrialRow>>> {
+pub fn read_subjects(name: &str, text: &str) -> Result<Vec<SubjectRow>> {
     let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(text.as_bytes());
     let headers = rdr.headers().map_err(|e| Error::input(name, "header", format!("malformed CSV: {e}")))?.clone();
     if let Some(missing) = REQUIRED_SUBJECT_COLUMNS.iter().find(|c| !headers.iter().any(|h| h == **c)) {
@@ -100,8 +112,15 @@ pub fn read_subjects(name: &str, text: &str) -> Result<Vec<Result<TrialRow>>> {
             return Err(Error::input(name, "rows", format!("more than {MAX_SUBJECT_ROWS} rows (the cap)")));
         }
         rows.push(match rec {
-            Ok(rec) => row(name, line, &headers, &rec),
-            Err(e) => Err(Error::input(name, format!("row {line}"), format!("malformed CSV: {e}"))),
+            Ok(rec) => {
+                let file = headers.iter().position(|h| h == "file").and_then(|i| rec.get(i)).unwrap_or("");
+                SubjectRow { line, file: file.to_string(), row: row(name, line, &headers, &rec) }
+            }
+            Err(e) => SubjectRow {
+                line,
+                file: String::new(),
+                row: Err(Error::input(name, format!("row {line}"), format!("malformed CSV: {e}"))),
+            },
         });
     }
     if rows.is_empty() {
@@ -216,7 +235,8 @@ mod tests {
                     5,e.csv,F,1.6,60,,1.1,1.2,120\n\
                     6,../f.csv,F,1.6,60,,1.1,,\n\
                     7,g.csv,F,1.6,sixty,,1.1,,\n";
-        let rows = read_subjects("subjects.csv", text).unwrap();
+        let rows: Vec<Result<TrialRow>> =
+            read_subjects("subjects.csv", text).unwrap().into_iter().map(|r| r.row).collect();
         let a = rows[0].as_ref().unwrap();
         assert_eq!((a.stride_s, a.stride_from, a.sex), (1.05, StrideSource::Given, Sex::Male));
         let err = |i: usize| rows[i].as_ref().unwrap_err().to_string();

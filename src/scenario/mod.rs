@@ -517,7 +517,7 @@ pub mod fuzz {
 
     /// A `subjects.csv` of a gait folder (`exoleg gait-check`): the table and every row.
     pub fn subjects_csv(text: &str) -> Result<()> {
-        crate::reference::read_subjects("subjects.csv", text)?.into_iter().try_for_each(|r| r.map(|_| ()))
+        crate::reference::read_subjects("subjects.csv", text)?.into_iter().try_for_each(|r| r.row.map(|_| ()))
     }
 
     /// `--set` flags, one per line, on the embedded default scenario, resolved.

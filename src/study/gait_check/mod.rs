@@ -252,30 +252,26 @@ fn discover(dirs: &[PathBuf]) -> Result<Vec<Trial>> {
         let text = crate::scenario::read_capped(&table, crate::scenario::MAX_INPUT_FILE_BYTES)?;
         let rows = read_subjects(&name, &text)?;
         let mut csvs = folder_csvs(dir)?;
-        for row in rows {
-            let (trial_name, path, row) = match row {
-                Ok(r) => {
-                    let path = dir.join(&r.file);
-                    let known = csvs.iter().position(|c| *c == r.file);
-                    let row = match known {
-                        Some(i) => {
-                            csvs.remove(i);
-                            Ok(r.clone())
-                        }
-                        None if trials.iter().any(|t: &Trial| t.path == path) => Err(Error::input(
-                            &name,
-                            format!("row {}, file", r.line),
-                            format!("{} has a row already", r.file),
-                        )),
-                        None => Err(Error::input(
-                            &name,
-                            format!("row {}, file", r.line),
-                            format!("no file {} in {}", r.file, dir.display()),
-                        )),
+        for r in rows {
+            // A row claims the file it names, read or not: its problem is that trial's.
+            let claimed = csvs.iter().position(|c| *c == r.file).map(|i| csvs.remove(i));
+            let path = dir.join(&r.file);
+            let row = match (r.row, claimed) {
+                (Err(e), _) => Err(e),
+                (Ok(row), Some(_)) => Ok(row),
+                (Ok(row), None) => {
+                    let known = trials.iter().any(|t: &Trial| t.path == path);
+                    let why = if known {
+                        format!("{} has a row already", row.file)
+                    } else {
+                        format!("no file {} in {}", row.file, dir.display())
                     };
-                    (r.file.trim_end_matches(".csv").to_string(), path, row)
+                    Err(Error::input(&name, format!("row {}, file", row.line), why))
                 }
-                Err(e) => (row_label(&e), table.clone(), Err(e)),
+            };
+            let trial_name = match r.file.strip_suffix(".csv") {
+                Some(stem) if !stem.is_empty() && !stem.contains(['/', '\\']) => stem.to_string(),
+                _ => format!("subjects.csv row {}", r.line),
             };
             trials.push(Trial { folder: label.clone(), name: trial_name, path, row });
         }
@@ -291,14 +287,6 @@ fn discover(dirs: &[PathBuf]) -> Result<Vec<Trial>> {
         }
     }
     Ok(trials)
-}
-
-/// The name of a trial whose row could not be read: `subjects.csv row N`.
-fn row_label(e: &Error) -> String {
-    match e {
-        Error::Input { key, .. } => format!("subjects.csv {}", key.split(',').next().unwrap_or("row")),
-        _ => "subjects.csv".into(),
-    }
 }
 
 /// The CSV files of `dir` other than `subjects.csv`, sorted.
@@ -398,10 +386,11 @@ fn run_trial(t: &Trial, base: &Scenario, opts: &CheckOptions, res: &Resources) -
         Ok(r) => r.clone(),
         Err(e) => return result(None, Outcome::BadInput(e.to_string())),
     };
-    let prepared = check_trial_csv(&t.path)
-        .and_then(|()| base.with_sets(&trial_sets(&row, &t.path, opts)))
-        .and_then(|s| s.resolve(res));
-    let sc = match prepared {
+    if let Err(e) = check_trial_csv(&t.path) {
+        return result(Some(row), Outcome::BadInput(e.to_string()));
+    }
+    // The scenario's errors name its keys: say which trial they are about.
+    let sc = match base.with_sets(&trial_sets(&row, &t.path, opts)).and_then(|s| s.resolve(res)) {
         Ok(sc) => sc,
         Err(e) => return result(Some(row), Outcome::BadInput(format!("{}: {e}", t.path.display()))),
     };
