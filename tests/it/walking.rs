@@ -194,7 +194,7 @@ fn a_run_that_is_not_walking_says_so() {
         (o.status.code(), String::from_utf8_lossy(&o.stderr).to_string(), summary)
     };
     // Measured: belt 1.7 m/s (the leg sweeps 1.20): the pelvis carries the difference, riding
-    // 0.33 m back and forth (0.048 m at 1.21 m/s, the sway over the foot included); a constant
+    // 0.34 m back and forth beyond its sway over the foot (0.035 m at 1.21 m/s); a constant
     // tilt of 4 deg (the data's mean 14.7 - 10): the foot is on the belt 31 % of the time (and
     // two more flags: dragged, the knee moment's correlation 0.43); a constant tilt of 24.7 deg
     // (10 over the data's): stance 0.55, GRF correlation 0.90, knee moment correlation 0.68,
