@@ -94,7 +94,10 @@ fn gait_check(c: &mut Criterion) {
     let mut g = c.benchmark_group("gait_check");
     g.sample_size(10);
     g.bench_function("v3_reduced_2_jobs", |b| {
-        b.iter(|| exoleg::study::gait_check::gait_check(&[v3.clone()], &tmp.path().join("out"), &opts).expect("check"))
+        b.iter(|| {
+            exoleg::study::gait_check::gait_check(std::slice::from_ref(&v3), &tmp.path().join("out"), &opts)
+                .expect("check")
+        })
     });
 }
 

@@ -17,9 +17,9 @@ pub struct Cli {
     pub command: Command,
 }
 
-/// Options shared by `sweep` and `robustness`.
+/// Options of every study that runs many runs in parallel.
 #[derive(Debug, Clone, clap::Args)]
-pub struct SweepArgs {
+pub struct ParallelArgs {
     /// Override any scenario key for all runs (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub sets: Vec<String>,
@@ -29,6 +29,14 @@ pub struct SweepArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// Options shared by `sweep` and `robustness`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SweepArgs {
+    /// Overrides, workers, progress.
+    #[command(flatten)]
+    pub parallel: ParallelArgs,
     /// Run only shard K of N (0-based: the runs whose index % N == K; e.g.
     /// `--shard $SLURM_ARRAY_TASK_ID/N`): writes DIR/runs.jsonl and DIR/shard.json for
     /// `exoleg merge`.
@@ -54,15 +62,9 @@ pub struct GaitCheckArgs {
     /// The base scenario (default: the built-in treadmill_subject.toml).
     #[arg(long)]
     pub scenario: Option<PathBuf>,
-    /// Override any scenario key for every trial (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub sets: Vec<String>,
-    /// Worker threads (0 = all cores).
-    #[arg(long, default_value_t = 0)]
-    pub jobs: usize,
-    /// No progress bar.
-    #[arg(long)]
-    pub quiet: bool,
+    /// Overrides for every trial, workers, progress.
+    #[command(flatten)]
+    pub parallel: ParallelArgs,
     /// Target: the least stance fraction of the stride.
     #[arg(long, default_value_t = 0.45)]
     pub min_stance: f64,
@@ -337,7 +339,7 @@ fn cmd_sweep(
     run_outputs: bool,
     common: SweepArgs,
 ) -> Result<i32> {
-    let base = Scenario::load(Some(&scenario), &common.sets)?;
+    let base = Scenario::load(Some(&scenario), &common.parallel.sets)?;
     warn_base(&base);
     let plan = sweep::plan_from_args(&base, &grids, monte_carlo, &vary)?;
     run_study(&base, &base.source_name, &plan, shard::StudyKind::Sweep, out, run_outputs, &common)
@@ -360,8 +362,8 @@ fn run_study(
     }
     let sh = common.shard.as_deref().map(shard::parse_shard).transpose()?;
     let opts = sweep::RunOptions {
-        jobs: common.jobs,
-        progress: !common.quiet,
+        jobs: common.parallel.jobs,
+        progress: !common.parallel.quiet,
         shard: sh.unwrap_or((0, 1)),
         controller: None,
         cancel: None,
@@ -395,7 +397,7 @@ fn robustness_verdict(base: &crate::scenario::ScenarioFile, agg: &sweep::Aggrega
 
 /// `exoleg robustness`.
 fn cmd_robustness(scenario: PathBuf, percent: f64, samples: usize, out: PathBuf, common: SweepArgs) -> Result<i32> {
-    let base = Scenario::load(Some(&scenario), &common.sets)?;
+    let base = Scenario::load(Some(&scenario), &common.parallel.sets)?;
     warn_base(&base);
     let (pinned, plan) = robustness::robustness_plan(&base, samples, percent)?;
     run_study(&pinned, &base.source_name, &plan, shard::StudyKind::Robustness { percent }, out, false, &common)
@@ -485,11 +487,11 @@ fn cmd_gait_check(dirs: Vec<PathBuf>, out: PathBuf, a: GaitCheckArgs) -> Result<
         engine: a.engine,
         dt_s: a.dt_s,
         strides: a.strides,
-        jobs: a.jobs,
-        progress: !a.quiet,
+        jobs: a.parallel.jobs,
+        progress: !a.parallel.quiet,
         targets,
         scenario: a.scenario,
-        sets: a.sets,
+        sets: a.parallel.sets,
     };
     let report = crate::study::gait_check::gait_check(&dirs, &out, &opts)?;
     print!("{}", report.table());

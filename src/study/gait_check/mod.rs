@@ -186,10 +186,11 @@ impl Figures {
         if !(t.stance.0..=t.stance.1).contains(&c.stance_fraction) {
             why.push(format!("stance {:.3} outside {}..{}", c.stance_fraction, t.stance.0, t.stance.1));
         }
-        if !(d.grf_correlation >= t.min_grf_r) {
+        // A NaN correlation (a flat curve) misses the target too.
+        if d.grf_correlation.is_nan() || d.grf_correlation < t.min_grf_r {
             why.push(format!("GRF r {:.3} < {}", d.grf_correlation, t.min_grf_r));
         }
-        if !(d.knee_moment_stance_correlation >= t.min_knee_moment_r) {
+        if d.knee_moment_stance_correlation.is_nan() || d.knee_moment_stance_correlation < t.min_knee_moment_r {
             why.push(format!("knee moment r {:.3} < {}", d.knee_moment_stance_correlation, t.min_knee_moment_r));
         }
         if !c.not_walking.is_empty() {
