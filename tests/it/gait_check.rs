@@ -121,6 +121,12 @@ fn a_folder_without_its_table_is_refused() {
     assert!(err.contains("subjects.csv") && err.contains("speed_m_s") && err.contains("missing column"), "{err}");
     assert!(!out.exists());
     assert_eq!(err.lines().count(), 1, "one line: {err}");
+    // The output never goes into a data folder.
+    let inside = no_speed.join("out");
+    let (code, _, err) = gait_check_cli(&[&no_speed], &inside, &[]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--out") && err.contains("inside the gait folder"), "{err}");
+    assert!(!inside.exists());
 }
 
 /// A partly bad folder: the good trial runs, every bad one is reported naming its file, row

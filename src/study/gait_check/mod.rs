@@ -431,6 +431,10 @@ pub struct Report {
 pub fn gait_check(dirs: &[PathBuf], out: &Path, opts: &CheckOptions) -> Result<Report> {
     use rayon::prelude::*;
     opts.check()?;
+    if let Some(d) = dirs.iter().find(|d| crate::output::within(out, d)) {
+        let msg = format!("is inside the gait folder {}: give a folder outside it", d.display());
+        return Err(Error::input("--out", out.display().to_string(), msg));
+    }
     let trials = discover(dirs)?;
     let base = match &opts.scenario {
         Some(p) => Scenario::load(Some(p), &opts.sets)?,
