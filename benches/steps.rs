@@ -13,6 +13,7 @@
 //! Compare per simulated second: a 0.5 ms step covers twice the time of a 0.25 ms one. `*_csv`: the same run as its `_memory`
 //! twin writing `timeseries.csv` (to a temporary folder, flushed and synced as the CLI does)
 //! instead of keeping the rows in memory: the output path's cost (10 s runs, 10,000 rows).
+//! `gait_check/v3_reduced_2_jobs`: the whole v3 gait-check table (see below).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use exoleg::record::NullSink;
@@ -100,5 +101,22 @@ fn steps(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, steps);
+/// `gait_check/v3_reduced_2_jobs`: the whole v3 table as `exoleg gait-check assets/gait/v3`
+/// runs it (21 trials, six strides each on the reduced engine at 1 ms, the table and the 21
+/// figures written into a fresh folder) on two worker threads.
+fn gait_check(c: &mut Criterion) {
+    let v3 = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/gait/v3");
+    let tmp = tempfile::tempdir().unwrap();
+    let opts = exoleg::study::gait_check::CheckOptions { jobs: 2, ..Default::default() };
+    let mut g = c.benchmark_group("gait_check");
+    g.sample_size(10);
+    g.bench_function("v3_reduced_2_jobs", |b| {
+        b.iter(|| {
+            exoleg::study::gait_check::gait_check(std::slice::from_ref(&v3), &tmp.path().join("out"), &opts)
+                .expect("check")
+        })
+    });
+}
+
+criterion_group!(benches, steps, gait_check);
 criterion_main!(benches);

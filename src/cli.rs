@@ -17,9 +17,9 @@ pub struct Cli {
     pub command: Command,
 }
 
-/// Options shared by `sweep` and `robustness`.
+/// Options of every study that runs many runs in parallel.
 #[derive(Debug, Clone, clap::Args)]
-pub struct SweepArgs {
+pub struct ParallelArgs {
     /// Override any scenario key for all runs (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub sets: Vec<String>,
@@ -29,6 +29,14 @@ pub struct SweepArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// Options shared by `sweep` and `robustness`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SweepArgs {
+    /// Overrides, workers, progress.
+    #[command(flatten)]
+    pub parallel: ParallelArgs,
     /// Run only shard K of N (0-based: the runs whose index % N == K; e.g.
     /// `--shard $SLURM_ARRAY_TASK_ID/N`): writes DIR/runs.jsonl and DIR/shard.json for
     /// `exoleg merge`.
@@ -37,6 +45,47 @@ pub struct SweepArgs {
     /// Print the expanded runs as JSON lines (index, overrides) and exit without running.
     #[arg(long)]
     pub plan: bool,
+}
+
+/// Options of `gait-check`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct GaitCheckArgs {
+    /// `reduced` (the default: about 16x faster) or `rapier`.
+    #[arg(long, default_value = "reduced")]
+    pub engine: String,
+    /// Step (s). Default: 0.001 on the reduced engine, 0.00025 on Rapier.
+    #[arg(long = "dt", value_name = "S")]
+    pub dt_s: Option<f64>,
+    /// Strides per trial, the first of them the run-in.
+    #[arg(long, default_value_t = 6)]
+    pub strides: usize,
+    /// The base scenario (default: the built-in treadmill_subject.toml).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Overrides for every trial, workers, progress.
+    #[command(flatten)]
+    pub parallel: ParallelArgs,
+    /// Target: the least stance fraction of the stride.
+    #[arg(long, default_value_t = 0.45)]
+    pub min_stance: f64,
+    /// Target: the largest stance fraction of the stride.
+    #[arg(long, default_value_t = 0.70)]
+    pub max_stance: f64,
+    /// Target: the least correlation of the vertical ground reaction with the data's.
+    #[arg(long, default_value_t = 0.8)]
+    pub min_grf_r: f64,
+    /// Target: the least correlation of the stance knee moment with the data's.
+    #[arg(long, default_value_t = 0.7)]
+    pub min_knee_moment_r: f64,
+    /// Peak check: the extensor peak within this many % of the cycle of the data's.
+    #[arg(long, default_value_t = 5.0)]
+    pub extensor_within_pct: f64,
+    /// Peak check: the flexor peak within this fraction of the data's magnitude.
+    #[arg(long, default_value_t = 0.5)]
+    pub flexor_within: f64,
+    /// Count the peak checks in the verdict (else they are reported only).
+    #[arg(long)]
+    pub require_peaks: bool,
 }
 
 /// Sub-commands.
@@ -149,6 +198,21 @@ pub enum Command {
         /// The URDF file to write (`-`: standard output).
         #[arg(long, default_value = "-")]
         out: PathBuf,
+    },
+    /// Run every trial of folders of gait CSVs, each folder with its subjects.csv, with each
+    /// subject's numbers alone, in parallel; compare each with its data. Writes
+    /// OUT/gait_check.csv and OUT/figures/FOLDER/TRIAL.png. Exit 0 if every trial meets the
+    /// targets, 4 if not, 2 if a folder or a trial is bad input (the other trials still run).
+    GaitCheck {
+        /// Folders of gait CSVs, each with its subjects.csv (README, "Walking for anyone").
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Output directory.
+        #[arg(long, default_value = "out/gait-check")]
+        out: PathBuf,
+        /// The engine and how to run.
+        #[command(flatten)]
+        run: GaitCheckArgs,
     },
     /// Package a scenario's plant as an FMI 2.0 co-simulation FMU for Simulink, OpenModelica,
     /// FMPy or any FMI master: everything but the controller (the master reads the sensor
@@ -322,7 +386,7 @@ fn cmd_sweep(
     run_outputs: bool,
     common: SweepArgs,
 ) -> Result<i32> {
-    let base = Scenario::load(Some(&scenario), &common.sets)?;
+    let base = Scenario::load(Some(&scenario), &common.parallel.sets)?;
     warn_base(&base);
     let plan = sweep::plan_from_args(&base, &grids, monte_carlo, &vary)?;
     run_study(&base, &base.source_name, &plan, shard::StudyKind::Sweep, out, run_outputs, &common)
@@ -345,8 +409,8 @@ fn run_study(
     }
     let sh = common.shard.as_deref().map(shard::parse_shard).transpose()?;
     let opts = sweep::RunOptions {
-        jobs: common.jobs,
-        progress: !common.quiet,
+        jobs: common.parallel.jobs,
+        progress: !common.parallel.quiet,
         shard: sh.unwrap_or((0, 1)),
         controller: None,
         cancel: None,
@@ -380,7 +444,7 @@ fn robustness_verdict(base: &crate::scenario::ScenarioFile, agg: &sweep::Aggrega
 
 /// `exoleg robustness`.
 fn cmd_robustness(scenario: PathBuf, percent: f64, samples: usize, out: PathBuf, common: SweepArgs) -> Result<i32> {
-    let base = Scenario::load(Some(&scenario), &common.sets)?;
+    let base = Scenario::load(Some(&scenario), &common.parallel.sets)?;
     warn_base(&base);
     let (pinned, plan) = robustness::robustness_plan(&base, samples, percent)?;
     run_study(&pinned, &base.source_name, &plan, shard::StudyKind::Robustness { percent }, out, false, &common)
@@ -454,6 +518,49 @@ fn cmd_urdf(mass_kg: f64, height_m: f64, leg_length_m: Option<f64>, sex: String,
     Ok(EXIT_OK)
 }
 
+/// `exoleg gait-check`: the table printed, the bad trials listed on stderr; exit 2 if any
+/// input was bad, else 4 if a trial misses the targets.
+fn cmd_gait_check(dirs: Vec<PathBuf>, out: PathBuf, a: GaitCheckArgs) -> Result<i32> {
+    use crate::study::gait_check::{CheckOptions, Targets};
+    let targets = Targets {
+        stance: (a.min_stance, a.max_stance),
+        min_grf_r: a.min_grf_r,
+        min_knee_moment_r: a.min_knee_moment_r,
+        extensor_within_pct: a.extensor_within_pct,
+        flexor_within: a.flexor_within,
+        require_peaks: a.require_peaks,
+    };
+    let opts = CheckOptions {
+        engine: a.engine,
+        dt_s: a.dt_s,
+        strides: a.strides,
+        jobs: a.parallel.jobs,
+        progress: !a.parallel.quiet,
+        targets,
+        scenario: a.scenario,
+        sets: a.parallel.sets,
+    };
+    let report = crate::study::gait_check::gait_check(&dirs, &out, &opts)?;
+    print!("{}", report.table());
+    println!("outputs             {}", out.display());
+    let bad = report.bad_input();
+    for t in &bad {
+        if let crate::study::gait_check::Outcome::BadInput(m) = &t.outcome {
+            eprintln!("bad input: {m}");
+        }
+    }
+    let (meet, n) = report.count_meeting(report.trials.iter());
+    if !bad.is_empty() {
+        let msg =
+            format!("{} of {n} trials are bad input (listed above); the others ran: {}", bad.len(), out.display());
+        return Err(Error::input("gait-check", "", msg));
+    }
+    if meet < n {
+        return Err(Error::Criteria(format!("{} of {n} trials miss the targets (table above)", n - meet)));
+    }
+    Ok(EXIT_OK)
+}
+
 /// `exoleg fmu`.
 fn cmd_fmu(scenario: Option<PathBuf>, sets: Vec<String>, out: PathBuf, library: Option<PathBuf>) -> Result<i32> {
     let resolved = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
@@ -505,6 +612,7 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Compare { firmware: true, json, sets, .. } => cmd_firmware(json, sets),
         Command::Compare { scenario, plant, json, sets, .. } => cmd_compare(scenario, plant, json, sets),
         Command::Fmu { scenario, sets, out, library } => cmd_fmu(scenario, sets, out, library),
+        Command::GaitCheck { dirs, out, run } => cmd_gait_check(dirs, out, run),
         Command::Urdf { mass_kg, height_m, leg_length_m, sex, out } => {
             cmd_urdf(mass_kg, height_m, leg_length_m, sex, out)
         }

@@ -8,20 +8,26 @@
 //! knee torque (flexion +)   = K_k (k_d - k) + C_k (k_d' - k') - s_k * M_knee,data   (data: extensor +)
 //! ankle torque (dorsi +)    = K_a (a_d - a) + C_a (a_d' - a') - s_a * M_ankle,data  (data: plantarflexor +)
 //! tether force (x)          = K_t (x_d - x) + C_t (x_d' - x')
-//! support force (z, up)     = max(0, s_o * [ m_subject (g + z_d'') + K_s (z_d - z) + C_s (z_d' - z') ])
+//! support force (z, up)     = max(0, F_other + s_o * [ K_s (z_d - z) + C_s (z_d' - z') ])
+//!   F_other = the data's other-foot ground reaction (`data`, the default when walking)
+//!           | s_o * m_subject (g + z_d'')                          (`weight`, and a pose)
 //! ```
 //! `s_o` is the other leg's share of the support (from the gait events, `human::events`: 1 in
 //! this leg's swing, 0 in its single support, the data's `grf_other / (grf_this + grf_other)`
-//! between; `hip.other_leg_share` when set), `m_subject (g + z_d'')` the subject's weight and
-//! the force that moves the body along the hip height the data imply, `z_d` (see
-//! `reference::WalkingData`; x_d, the pelvis's fore-aft target, is 0 unless the belt and the
-//! leg's sweep differ). The other leg is a force on the pelvis, not a body; like a leg it
-//! pushes and never pulls (without the clamp its damper pulled the pelvis down onto the
-//! landing foot with up to 1.4 kN and doubled the heel-strike peak of a light subject). The
-//! `z_d''` term is what a leg carrying the body along `z_d` pushes beyond the weight; without
-//! it the spring lagged the target by about `m z_d'' / K_s`, about 1 cm before heel strike,
-//! the foot landed 4 % of the stride late and the loading response lost its extensor moment
-//! (subject 01's T05: 6 N m against the data's 15; with it 9).
+//! between; `hip.other_leg_share` when set), `z_d` the hip height the data's angles imply on
+//! this leg (see `reference::WalkingData`), `x_d` the pelvis's fore-aft target: over the
+//! supporting foot as the data's angles move it, plus any belt-sweep difference
+//! (`WalkingData::pelvis_x_at`). The other leg is a force on the pelvis, not a body; like a
+//! leg it pushes and never pulls (without the clamp its damper pulled the pelvis down onto the
+//! landing foot with up to 1.4 kN and doubled the heel-strike peak of a light subject).
+//!
+//! The other leg is virtual, so its ground reaction is the data's on the data's clock (its
+//! events are the data's); the spring and damper, scaled by the share the events give, only
+//! hold the hip near the height this leg reaches. `weight` moves the body along `z_d` instead
+//! (`m_subject (g + z_d'')`); `z_d` is geometry (this leg's reach at the data's angles, with
+//! kinks where the supporting foot changes), and its second derivative is not the body's: up
+//! to 2.5 body weights just before heel strike, a landing 0-5 % of the stride late and half the
+//! loading-response extensor moment on held-out subjects (README, "Walking for anyone").
 
 use crate::reference::WalkingSample;
 use serde::{Deserialize, Serialize};
@@ -103,11 +109,16 @@ pub struct HipParams {
     /// is not back at the data's height by the next heel strike, and a light subject's pelvis
     /// sank stride after stride into a dragged leg. >= 0.
     pub support_damping_n_s_per_m: f64,
-    /// What the virtual other leg carries besides its spring: `weight` (its share of the
-    /// subject's weight and of the force that moves the body along the data's hip height) or
-    /// `data` (the other foot's ground reaction in the data, the body's
-    /// vertical dynamics included). Default `weight`.
-    pub support_force: SupportForce,
+    /// What the virtual other leg carries besides its spring: `data` (the other foot's ground
+    /// reaction in the data, on the data's clock: the body's vertical dynamics as the data
+    /// measured them) or `weight` (its share of the subject's weight and of the force that
+    /// moves the body along the hip height the data's angles imply). Default: `data` when
+    /// walking along gait data, `weight` for a pose (the same force there). The hip height
+    /// the angles imply has kinks where the supporting foot changes and dips in double support
+    /// (on the model's toeless foot the terminal-stance reach is short): its second
+    /// derivative reached 10-27 m/s^2, and `weight` pushed up to 2.5 body weights just before
+    /// heel strike, delaying the landing (README, "Walking for anyone").
+    pub support_force: Option<SupportForce>,
     /// A constant share of the support for the other leg (0..=1) instead of the data's phase
     /// (standing: 0.5 on two legs). Default: the data's; 0.5 for the pose reference.
     pub other_leg_share: Option<f64>,
@@ -143,7 +154,7 @@ impl Default for HipParams {
             support_stiffness_n_per_m: 20000.0,
             support_damping_n_s_per_m: 3000.0,
             other_leg_share: None,
-            support_force: SupportForce::Weight,
+            support_force: None,
             initial_clearance_m: 0.002,
         }
     }
@@ -225,7 +236,7 @@ pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s:
         k * (target.value - q) + c * (target.rate - qd)
     };
     let share = hip.other_leg_share.unwrap_or(d.other_share);
-    let base = match hip.support_force {
+    let base = match hip.support_force.unwrap_or(SupportForce::Data) {
         SupportForce::Weight => share * hip.subject_mass() * (crate::leg::model::GRAVITY_M_S2 + d.pelvis_accel_m_s2),
         SupportForce::Data => d.grf_other_n,
     };

@@ -192,6 +192,13 @@ fn body(s: &SubjectBody) -> ([Segment; 3], f64, f64, &'static Template) {
     ([thigh, shank, foot], ankle * leg_scale, k, template)
 }
 
+/// The hip-joint-centre-to-floor distance of `s` (m): the given leg length, else the thigh,
+/// shank and ankle height de Leva's proportions give the stature.
+pub fn leg_length_m(s: &SubjectBody) -> f64 {
+    let ([thigh, shank, _], ankle, _, _) = body(s);
+    thigh.length_m + shank.length_m + ankle
+}
+
 /// The URDF of the built-in leg scaled to `s` (see the module doc). `s` must be valid
 /// (positive, finite; checked by the scenario).
 pub fn scaled_urdf(s: &SubjectBody) -> String {

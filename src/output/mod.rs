@@ -168,7 +168,7 @@ impl Drop for OutputDir {
 }
 
 /// True when `inner` is `outer` or inside it (both made absolute as far as they exist).
-fn within(inner: &Path, outer: &Path) -> bool {
+pub fn within(inner: &Path, outer: &Path) -> bool {
     let abs = |p: &Path| {
         let p = if p.is_absolute() { p.to_path_buf() } else { std::env::current_dir().unwrap_or_default().join(p) };
         // Canonicalise the longest part that exists (the rest cannot hold a link).

@@ -199,18 +199,21 @@ fn range(panel: &Panel) -> (f64, f64) {
 /// Draw stacked panels sharing the time axis `t_span` into a PNG at `path` (atomic write);
 /// `shade`: time intervals to shade in every panel (stance phases).
 pub fn stacked_png(path: &Path, title: &str, t_span: (f64, f64), panels: &[Panel], shade: &[(f64, f64)]) -> Result<()> {
-    stacked_png_over(path, title, "time (s)", t_span, panels, shade)
+    panels_png(path, title, "time (s)", t_span, panels, shade)
 }
 
-/// [`stacked_png`] over another shared x axis labelled `x_label`.
-pub fn stacked_png_over(
+/// Draw stacked panels sharing an x axis (`x_label`, the span `x_span`; the series' points
+/// are (x, value)) into a PNG at `path` (atomic write); `shade`: x intervals to shade in every
+/// panel.
+pub fn panels_png(
     path: &Path,
     title: &str,
     x_label: &str,
-    t_span: (f64, f64),
+    x_span: (f64, f64),
     panels: &[Panel],
     shade: &[(f64, f64)],
 ) -> Result<()> {
+    let t_span = x_span;
     ensure_font();
     let (w, h) = (1200u32, 300 * panels.len() as u32 + 60);
     let mut buf = vec![0u8; (w * h * 3) as usize];
@@ -331,7 +334,7 @@ pub fn wearer_png(path: &Path, c: &crate::metrics::wearer::WearerCycle, comfort_
     let pts = |v: &[f64]| v.iter().enumerate().map(|(i, x)| (i as f64 + 0.5, *x)).collect::<Vec<_>>();
     let flat = |x: f64| vec![(0.0, x), (100.0, x)];
     let grey = RGBColor(128, 128, 128);
-    stacked_png_over(
+    panels_png(
         path,
         title,
         "gait cycle (%, the data's clock)",

@@ -15,12 +15,12 @@ pub const BUILTIN_TRIALS: [(&str, &str, f64); 12] = [
     ("wbds02_overground_comfortable", include_str!("../../assets/gait/wbds02_overground_comfortable.csv"), 1.10),
     ("wbds02_overground_fast", include_str!("../../assets/gait/wbds02_overground_fast.csv"), 0.95),
     ("wbds02_overground_slow", include_str!("../../assets/gait/wbds02_overground_slow.csv"), 1.30),
-    ("wbds01_treadmill_t03", include_str!("../../assets/gait/wbds01_treadmill_t03.csv"), 1.3833),
-    ("wbds01_treadmill_t05", include_str!("../../assets/gait/wbds01_treadmill_t05.csv"), 1.0633),
-    ("wbds01_treadmill_t06", include_str!("../../assets/gait/wbds01_treadmill_t06.csv"), 1.0067),
-    ("wbds02_treadmill_t03", include_str!("../../assets/gait/wbds02_treadmill_t03.csv"), 1.21),
-    ("wbds02_treadmill_t05", include_str!("../../assets/gait/wbds02_treadmill_t05.csv"), 1.01),
-    ("wbds02_treadmill_t06", include_str!("../../assets/gait/wbds02_treadmill_t06.csv"), 0.94),
+    ("wbds01_treadmill_t03", include_str!("../../assets/gait/v2/wbds01_treadmill_t03.csv"), 1.3833),
+    ("wbds01_treadmill_t05", include_str!("../../assets/gait/v2/wbds01_treadmill_t05.csv"), 1.0633),
+    ("wbds01_treadmill_t06", include_str!("../../assets/gait/v2/wbds01_treadmill_t06.csv"), 1.0067),
+    ("wbds02_treadmill_t03", include_str!("../../assets/gait/v2/wbds02_treadmill_t03.csv"), 1.21),
+    ("wbds02_treadmill_t05", include_str!("../../assets/gait/v2/wbds02_treadmill_t05.csv"), 1.01),
+    ("wbds02_treadmill_t06", include_str!("../../assets/gait/v2/wbds02_treadmill_t06.csv"), 0.94),
 ];
 
 /// A truncated Fourier series `c0 + sum_k (a_k cos(k w x) + b_k sin(k w x))`, w = 2 pi / period,

@@ -5,9 +5,11 @@
 
 mod gait;
 mod knee_force;
+mod subjects;
 mod walking;
 pub use gait::*;
 pub use knee_force::*;
+pub use subjects::{estimated_stride_s, read_subjects, StrideSource, SubjectRow, TrialRow};
 pub use walking::*;
 
 use serde::Serialize;

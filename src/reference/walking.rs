@@ -17,7 +17,11 @@
 //! - A stance weight in [0, 1]: 1 in this leg's stance, 0 in swing, with raised-cosine
 //!   transitions [`STANCE_BLEND_PCT`] wide centred on heel strike and toe-off (the data's; a
 //!   run on the ground uses the detected one, `human::events`).
-//! - The pelvis's fore-aft path when the belt and the leg's stance sweep differ.
+//! - The pelvis's fore-aft path: the hip moves over the supporting foot as the data's angles
+//!   move it (this leg's in its stance, the other's in this leg's swing), so the foot that the
+//!   belt carries at a constant speed needs no other angles than the data's; and, when the belt
+//!   and the leg's stance sweep differ, the difference (back over the stance, forward over the
+//!   swing).
 
 use super::{CycleTable, FourierSeries, GaitReference, RefSample};
 use crate::leg::{sole_contacts_at, sole_points_at, static_sink_m, LegSpec};
@@ -137,6 +141,9 @@ pub struct WalkingData {
     /// The pelvis's fore-aft path per m/s of belt-sweep difference (m per m/s) against % of
     /// the cycle: -t over the stance, back over the swing, zero mean.
     drift: FourierSeries,
+    /// The pelvis's fore-aft path over the supporting foot (m, +x forward, zero mean) against
+    /// % of the cycle (see [`Self::sway_profile`]).
+    sway: FourierSeries,
 }
 
 impl WalkingData {
@@ -175,6 +182,7 @@ impl WalkingData {
             stance_pct,
             belt_speed_m_s: 0.0,
             drift: FourierSeries::fit(&[0.0, 50.0, 25.0], &[0.0; 3], 100.0, 1),
+            sway: FourierSeries::fit(&[0.0, 50.0, 25.0], &[0.0; 3], 100.0, 1),
         };
 
         let pcts: Vec<f64> = (0..PELVIS_SAMPLES).map(|i| i as f64 * 100.0 / PELVIS_SAMPLES as f64).collect();
@@ -186,6 +194,7 @@ impl WalkingData {
         let belt = w.stance_sweep_m(model)? / stance_s;
         (w.pelvis, w.belt_speed_m_s) = (pelvis, belt);
         w.drift = w.drift_profile();
+        w.sway = w.sway_profile(model)?;
         Ok(w)
     }
 
@@ -253,29 +262,72 @@ impl WalkingData {
         FourierSeries::fit(&pcts, &xs, 100.0, PELVIS_HARMONICS)
     }
 
+    /// The sole points (in the hip's frame, m) at the data's pose at `pct`.
+    fn sole_points(&self, model: &LegSpec, pct: f64) -> Result<Vec<crate::leg::planar::P2>, String> {
+        let t = pct / 100.0 * self.gait.stride_s;
+        let (h, k, a) = (self.thigh_at(t).value, self.gait.knee_at(t).value, self.gait.ankle_at(t).value);
+        sole_points_at(model, h, k, a)
+            .map(|p| p.1)
+            .filter(|p| !p.is_empty())
+            .ok_or_else(|| format!("the leg cannot take the data's pose at {pct:.1} % (loop or soles)"))
+    }
+
+    /// How far (m) the sole point that is lowest at `from` % moves backwards under the hip
+    /// until `to` % (the point the belt holds, as the foot rolls from the heel to the ball).
+    fn sweep_between(&self, model: &LegSpec, from: f64, to: f64) -> Result<f64, String> {
+        let (now, next) = (self.sole_points(model, from)?, self.sole_points(model, to)?);
+        let i = (0..now.len()).fold(0, |b, i| if now[i].z < now[b].z { i } else { b });
+        Ok(now[i].x - next[i].x)
+    }
+
     /// How far the sole travels backwards under the hip over the stance (m): in
     /// [`SWEEP_STEPS`] slices from heel strike to toe-off, the motion of the sole point that is
     /// lowest at the start of each slice (the heel, then the ball: the point the belt holds).
     fn stance_sweep_m(&self, model: &LegSpec) -> Result<f64, String> {
         let (hs, to) = self.stance_pct;
         let len = (to - hs).rem_euclid(100.0);
-        let points = |pct: f64| {
-            let t = pct / 100.0 * self.gait.stride_s;
-            let (h, k, a) = (self.thigh_at(t).value, self.gait.knee_at(t).value, self.gait.ankle_at(t).value);
-            sole_points_at(model, h, k, a)
-                .map(|p| p.1)
-                .filter(|p| !p.is_empty())
-                .ok_or_else(|| format!("the leg cannot take the data's pose at {pct:.1} % (loop or soles)"))
+        let at = |j: usize| hs + len * j as f64 / SWEEP_STEPS as f64;
+        (1..=SWEEP_STEPS).map(|j| self.sweep_between(model, at(j - 1), at(j))).sum()
+    }
+
+    /// The pelvis's fore-aft path over the supporting foot (m, zero mean) against % of the
+    /// cycle, fitted with [`PELVIS_HARMONICS`]: the hip moves forward over the foot on the
+    /// belt at the rate the data's angles sweep the foot back under it (this leg in its data
+    /// stance, the other, this leg half a cycle later, in this leg's swing), less that
+    /// phase's mean rate, which the belt (and, when it differs, [`Self::drift_profile`])
+    /// carries. A person's pelvis decelerates over the first half of each stance and speeds
+    /// up over the second (the braking and then propulsive ground reaction); a pelvis held
+    /// at a constant speed makes the stance leg sweep at the belt's speed all along, off the
+    /// data's angles, and the stance knee moment loses its loading-response extensor and
+    /// terminal-stance flexor (README, "Walking for anyone").
+    fn sway_profile(&self, model: &LegSpec) -> Result<FourierSeries, String> {
+        let (hs, to) = self.stance_pct;
+        let len = (to - hs).rem_euclid(100.0);
+        let n = PELVIS_SAMPLES;
+        let dp = 100.0 / n as f64;
+        let stance: Vec<bool> = (0..n).map(|i| (i as f64 * dp - hs).rem_euclid(100.0) < len).collect();
+        let rates = (0..n)
+            .map(|i| {
+                let p = i as f64 * dp + if stance[i] { 0.0 } else { 50.0 };
+                self.sweep_between(model, p, p + dp)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mean = |phase: bool| {
+            let (sum, count) =
+                rates.iter().zip(&stance).filter(|(_, &s)| s == phase).fold((0.0, 0), |a, (r, _)| (a.0 + r, a.1 + 1));
+            sum / count.max(1) as f64
         };
-        let mut sweep = 0.0;
-        let mut now = points(hs)?;
-        for j in 1..=SWEEP_STEPS {
-            let next = points(hs + len * j as f64 / SWEEP_STEPS as f64)?;
-            let i = (0..now.len()).fold(0, |b, i| if now[i].z < now[b].z { i } else { b });
-            sweep += now[i].x - next[i].x;
-            now = next;
+        let (in_stance, in_swing) = (mean(true), mean(false));
+        let mut x = 0.0;
+        let mut path = Vec::with_capacity(n);
+        for (r, s) in rates.iter().zip(&stance) {
+            path.push(x);
+            x += r - if *s { in_stance } else { in_swing };
         }
-        Ok(sweep)
+        let mid = path.iter().sum::<f64>() / n as f64;
+        let pcts: Vec<f64> = (0..n).map(|i| i as f64 * dp).collect();
+        let path: Vec<f64> = path.iter().map(|v| v - mid).collect();
+        Ok(FourierSeries::fit(&pcts, &path, 100.0, PELVIS_HARMONICS))
     }
 
     /// The thigh's angle to the vertical (rad, forward positive): hip flexion minus the
@@ -363,14 +415,12 @@ impl WalkingData {
 
     /// The pelvis's fore-aft target (m, +x forward, zero mean over the cycle) and its rate
     /// (m/s) at `t_s` for a belt that runs `drift_m_s` faster than the leg's stance sweep
-    /// ([`Self::belt_speed_m_s`]): it moves back at `drift_m_s` over the data's stance and
-    /// forward again over the swing (see `human::body`), smoothed by [`PELVIS_HARMONICS`].
+    /// ([`Self::belt_speed_m_s`]): over the supporting foot as the data's angles move it
+    /// ([`Self::sway_profile`]), and back at `drift_m_s` over the data's stance and forward
+    /// again over the swing (see `human::body`), smoothed by [`PELVIS_HARMONICS`].
     pub fn pelvis_x_at(&self, t_s: f64, drift_m_s: f64) -> (f64, f64) {
-        if drift_m_s == 0.0 {
-            return (0.0, 0.0);
-        }
-        let (x, rate_per_pct, _) = self.drift.eval(self.pct_at(t_s));
-        (drift_m_s * x, drift_m_s * rate_per_pct * 100.0 / self.gait.stride_s)
+        let ((x, rate_per_pct, _), (y, sway_per_pct, _)) = self.drift.eval_pair(&self.sway, self.pct_at(t_s));
+        (drift_m_s * x + y, (drift_m_s * rate_per_pct + sway_per_pct) * 100.0 / self.gait.stride_s)
     }
 
     /// The lowest hip height over the cycle the data imply (m).

@@ -542,6 +542,11 @@ pub mod fuzz {
         crate::reference::GaitCycle::parse("fuzz.csv", text, 12).map(|_| ())
     }
 
+    /// A `subjects.csv` of a gait folder (`exoleg gait-check`): the table and every row.
+    pub fn subjects_csv(text: &str) -> Result<()> {
+        crate::reference::read_subjects("subjects.csv", text)?.into_iter().try_for_each(|r| r.row.map(|_| ()))
+    }
+
     /// `--set` flags, one per line, on the embedded default scenario, resolved.
     pub fn set_flags(text: &str) -> Result<()> {
         let sets: Vec<String> = text.lines().map(str::to_string).collect();
@@ -549,4 +554,7 @@ pub mod fuzz {
     }
 }
 
-pub use fuzz::{gait_csv as fuzz_gait_csv, scenario as fuzz_scenario, set_flags as fuzz_set_flags, urdf as fuzz_urdf};
+pub use fuzz::{
+    gait_csv as fuzz_gait_csv, scenario as fuzz_scenario, set_flags as fuzz_set_flags,
+    subjects_csv as fuzz_subjects_csv, urdf as fuzz_urdf,
+};

@@ -547,14 +547,12 @@ fn body_setup(
         BodyTargets::Walking(w) => belt_speed_m_s - w.belt_speed_m_s,
         BodyTargets::Pose(_) => 0.0,
     };
-    let body = BodySetup {
-        hip: f.hip.clone(),
-        wearer: f.wearer.clone(),
-        targets,
-        pelvis_mass_kg,
-        ankle_rad,
-        pelvis_drift_m_s,
-    };
+    let mut hip = f.hip.clone();
+    hip.support_force.get_or_insert(match &targets {
+        BodyTargets::Walking(_) => crate::human::SupportForce::Data,
+        BodyTargets::Pose(_) => crate::human::SupportForce::Weight,
+    });
+    let body = BodySetup { hip, wearer: f.wearer.clone(), targets, pelvis_mass_kg, ankle_rad, pelvis_drift_m_s };
     Ok((Some(ground), Some(Arc::new(body))))
 }
 

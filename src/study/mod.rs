@@ -1,8 +1,10 @@
 //! Studies built on the simulation core: one run written to a folder, the paper's cases,
-//! parameter sweeps, the robustness report, and the gait-test API.
+//! parameter sweeps, the robustness report, the gait-test API, and the check of a folder of gait
+//! trials (`gait-check`).
 
 pub mod compare;
 pub mod firmware;
+pub mod gait_check;
 pub mod gait_test;
 pub mod robustness;
 pub mod shard;

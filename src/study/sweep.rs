@@ -323,7 +323,8 @@ pub fn validate_plan(base: &Scenario, plan: &Plan, res: &Resources, opts: &RunOp
     })
 }
 
-fn pool(jobs: usize, runs: usize) -> Result<rayon::ThreadPool> {
+/// A thread pool of [`clamp_jobs`] workers.
+pub(crate) fn pool(jobs: usize, runs: usize) -> Result<rayon::ThreadPool> {
     let n = clamp_jobs(jobs, runs);
     rayon::ThreadPoolBuilder::new()
         .num_threads(n)
@@ -491,7 +492,8 @@ pub fn run_plan(
     Ok(agg)
 }
 
-fn progress_bar(show: bool, n: usize) -> indicatif::ProgressBar {
+/// A progress bar over `n` runs on stderr (hidden unless `show`).
+pub(crate) fn progress_bar(show: bool, n: usize) -> indicatif::ProgressBar {
     if !show {
         return indicatif::ProgressBar::hidden();
     }

@@ -92,6 +92,17 @@ fn gait_csv_corpus() {
 }
 
 #[test]
+fn subjects_csv_corpus() {
+    replay("subjects_csv", exoleg::scenario::fuzz_subjects_csv);
+    // Too many rows: refused while reading.
+    let big: String = std::iter::once("file,sex,height_m,mass_kg,speed_m_s\n".to_string())
+        .chain((0..10_005).map(|i| format!("t{i}.csv,M,1.7,70,1.2\n")))
+        .collect();
+    let e = exoleg::scenario::fuzz_subjects_csv(&big).unwrap_err().to_string();
+    assert!(e.contains("10000"), "{e}");
+}
+
+#[test]
 fn urdf_with_a_huge_fixed_chain_is_refused_at_once() {
     // Found by fuzzing: 82,000 links welded in a chain made the loader's per-link chain walks
     // quadratic (minutes); the loader now refuses more than 256 links before any walk.

@@ -11,6 +11,7 @@ mod end_stops;
 mod firmware;
 mod fmu;
 mod gait;
+mod gait_check;
 mod hardening;
 mod hostile;
 mod leg_coupled;

@@ -69,11 +69,23 @@
 //!   gait_treadmill's extensor peak 15.8 -> 20.8 N m (data 29.8), knee moment correlation
 //!   0.912 -> 0.830, unfiltered peak 865 -> 985 N; treadmill_subject (subject 01, T05):
 //!   extensor peak 6 -> 9 N m (data 15), knee moment correlation 0.959 -> 0.921.
+//! - gait_treadmill, treadmill_subject (issue 33, walking for anyone): the pelvis's fore-aft
+//!   target follows the supporting foot as the data's angles sweep it (the pelvis slows over
+//!   the first half of each stance and speeds up over the second, as a person's does), and the
+//!   virtual other leg carries the data's other-foot ground reaction instead of its share of
+//!   `m_subject (g + z_d'')` (`hip.support_force` now defaults to `data` when walking; `stand`,
+//!   a pose, keeps `weight` and is unchanged). gait_treadmill: knee moment correlation 0.830
+//!   -> 0.929, extensor peak 20.8 -> 32.4 N m at 12.5 % (data 29.8 at 12.5 %), flexor peak
+//!   -37.2 -> -45.6 N m (data -29.5; tests/it/walking.rs says why), GRF correlation 0.932 ->
+//!   0.981, unfiltered peak 985 -> 956 N; treadmill_subject (subject 01, T05): knee moment
+//!   correlation 0.921 -> 0.965, extensor peak 9 -> 15 N m (data 15), flexor -49 -> -57 N m
+//!   (data -48), GRF correlation 0.951 -> 0.986. The 27 treadmill trials of the training set:
+//!   README, "Walking for anyone".
 //! - gait_treadmill, treadmill_subject (issue 32, the device's sensors): leg runs with a
 //!   sampled controller record the device's 13 truth columns (segment angles and rates, heel
 //!   and forefoot forces, cuff forces, pressures, hydraulic power, the device's knee moment)
 //!   after the contact columns. Nothing else changed: the files without those columns hash
-//!   to the previous records (checked below, `WITHOUT_DEVICE_COLUMNS`).
+//!   to issue 33's records (checked below, `WITHOUT_DEVICE_COLUMNS`).
 
 use sha2::{Digest, Sha256};
 use std::path::Path;
@@ -89,16 +101,16 @@ const EXPECTED: [(&str, &str); 10] = [
     ("paper_2hz_gamma200", "8bfafba8298a3886711e89216a95b04f8e046d5d8290bc4959a31cad5ff6172e"),
     // Added with issue 12 (loaded walking).
     ("stand", "1db9d3ff5af0e9a9cd5ca7655aa63166708ad14ecf1fcbb01ead55ca02b9e79b"),
-    ("gait_treadmill", "886343f1469b4fbbc7224d6be362398f07a248ddd370ee2819eb18b984c57026"),
+    ("gait_treadmill", "5584d4662ae9cbc791c3d3caddf064eb54661f2afd30fa745bcca188700a9ff1"),
     // Added with issue 23 (any subject).
-    ("treadmill_subject", "0e5b346db061823c570f7e8876ebf4285b0d146c1801ec8703f986f8ea68044e"),
+    ("treadmill_subject", "7b18541b87743f77756ceca882e023e48bebd3585afc29f7eab081241ecdfc19"),
 ];
 
-/// The records before issue 32 of the runs that now carry the device's columns: the files
-/// without those columns.
+/// The records (issue 33's) of the runs that now carry the device's columns (issue 32): the
+/// files without those columns.
 const WITHOUT_DEVICE_COLUMNS: [(&str, &str); 2] = [
-    ("gait_treadmill", "d3a1fc750674f5f4a7e930fe564eb94b6909b2167d59456be0921f36d5f40bea"),
-    ("treadmill_subject", "2a4a46077483d2c19e2a094cbabc8f1486dbaac2e95ff7e22f5004d53ccd6624"),
+    ("gait_treadmill", "1945a81249a14d05a53037c448fef84d720f12d6f77f7b98eeeb4db9cbce750d"),
+    ("treadmill_subject", "f5876941b8ee61c72dccfd9eac926dd7490fe51e7f820637a812423a2e2fe834"),
 ];
 
 /// A CSV without the device's columns (`exoleg::record::DEVICE_COLUMNS`).

@@ -92,7 +92,7 @@ fn subject_with_a_user_urdf_warns_and_a_contradiction_is_refused() {
     assert!(e.contains("subject.leg_length_m"), "{e}");
 }
 
-/// The six shipped treadmill trials with each subject's own numbers (trials.csv: mass,
+/// The six shipped treadmill trials with each subject's own numbers (assets/gait/v2/subjects.csv: mass,
 /// stature, leg length, belt speed, stride time; subject 02's stride time is an estimate) and
 /// nothing else changed meet the issue's walking figures (README table).
 #[test]
@@ -100,12 +100,12 @@ fn the_shipped_treadmill_trials_walk_with_each_subjects_numbers() {
     walk_the_shipped_trials(0.00025, &[]);
 }
 
-/// The same six trials on the reduced engine at 1 ms. Measured (as below): 01 T03: 0.588;
-/// 0.966, 1.11; 825 / 745; 0.921; -6 / 2, -42 / -44. 01 T05: 0.563; 0.950, 1.14; 931 / 766;
-/// 0.919; 9 / 15, -49 / -48. 01 T06: 0.554; 0.933, 1.17; 1008 / 822; 0.909; 17 / 21, -53 / -52.
-/// 02 T03: 0.606; 0.979, 1.15; 608 / 527; 0.869; -16 / -10, -33 / -46. 02 T05: 0.568; 0.979,
-/// 1.04; 568 / 543; 0.759; -8 / -13, -23 / -43. 02 T06: 0.527; 0.885, 1.21; 714 / 562; 0.871;
-/// -4 / 2, -39 / -49: every figure within 0.01 of Rapier's at 0.25 ms but the unfiltered heel
+/// The same six trials on the reduced engine at 1 ms. Measured (as below): 01 T03: 0.587;
+/// 0.988, 1.09; 816 / 745; 0.968; 1 / 2, -49 / -44. 01 T05: 0.559; 0.986, 1.12; 949 / 766;
+/// 0.964; 15 / 15, -57 / -48. 01 T06: 0.548; 0.985, 1.18; 1268 / 822; 0.966; 16 / 21, -61 / -52.
+/// 02 T03: 0.616; 0.988, 1.19; 623 / 527; 0.965; -14 / -10, -46 / -46. 02 T05: 0.587; 0.941,
+/// 1.09; 663 / 543; 0.844; -6 / -13, -24 / -43. 02 T06: 0.551; 0.966, 1.23; 688 / 562; 0.953;
+/// -7 / 2, -55 / -49: every figure within 0.01 of Rapier's at 0.25 ms but the unfiltered heel
 /// strike (a one-step peak).
 #[test]
 fn the_shipped_treadmill_trials_walk_on_the_reduced_engine() {
@@ -116,15 +116,17 @@ fn the_shipped_treadmill_trials_walk_on_the_reduced_engine() {
 /// the overrides `extra`, and check the issue's acceptance.
 fn walk_the_shipped_trials(dt: f64, extra: &[&str]) {
     // Measured (subject trial: stance; GRF r, 10 Hz peak ratio; unfiltered peak / data's;
-    // knee moment r; extensor, flexor peak / data's, N m):
-    // 01 T03: 0.588; 0.966, 1.11; 825 / 745; 0.923; -5 / 2, -42 / -44
-    // 01 T05: 0.563; 0.951, 1.14; 934 / 766; 0.921; 9 / 15, -49 / -48
-    // 01 T06: 0.554; 0.934, 1.17; 1012 / 822; 0.912; 18 / 21, -53 / -52
-    // 02 T03: 0.605; 0.980, 1.15; 608 / 527; 0.868; -16 / -10, -33 / -46
-    // 02 T05: 0.568; 0.979, 1.04; 566 / 543; 0.753; -8 / -13, -22 / -43 (belt 16 % over the sweep)
-    // 02 T06: 0.527; 0.886, 1.21; 781 / 562; 0.872; -4 / 2, -39 / -49
-    // The limits are the issue's acceptance (the closest: 02 T05's flexor at 0.51 of the
-    // data's, 01 T05's extensor at 0.60).
+    // knee moment r; extensor, flexor peak / data's, N m; Rapier at 0.25 ms):
+    // 01 T03: 0.587; 0.988, 1.09; 815 / 745; 0.968; 1 / 2, -49 / -44
+    // 01 T05: 0.559; 0.986, 1.11; 939 / 766; 0.965; 15 / 15, -57 / -48
+    // 01 T06: 0.549; 0.985, 1.18; 1269 / 822; 0.967; 16 / 21, -60 / -52
+    // 02 T03: 0.616; 0.989, 1.19; 622 / 527; 0.967; -14 / -10, -46 / -46
+    // 02 T05: 0.587; 0.941, 1.09; 662 / 543; 0.839; -6 / -13, -24 / -43 (belt 16 % over the sweep)
+    // 02 T06: 0.552; 0.965, 1.23; 825 / 562; 0.954; -7 / 2, -55 / -49
+    // (issue 23's model, before the pelvis followed the foot's sweep and the other leg took the
+    // data's ground reaction: knee moment r 0.923, 0.921, 0.912, 0.868, 0.753, 0.872.)
+    // The limits are the issue's acceptance (the closest: 02 T05's flexor at 0.55 of the
+    // data's; 01 T06's unfiltered peak at 1.54x).
     let trials = [
         ("01", "t03", 0.85, 1.3833),
         ("01", "t05", 1.21, 1.0633),

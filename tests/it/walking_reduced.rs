@@ -113,13 +113,15 @@ fn the_reduced_treadmill_agrees_with_rapier_at_small_steps() {
     // at most 0.0005 in a correlation and 0.4 % in the force RMS).
     let oracle = run("rapier", "0.000125");
     // Measured against it (stance, GRF r, knee-moment r, 10 Hz GRF peak, knee RMS, force RMS;
-    // the oracle 0.5701, 0.9329, 0.8310, 1.1835, 0.9118 deg, 9.561 N):
-    // - reduced at 1 ms: 0.0005, 0.0013, 0.0037, 0.37 %, 0.14 %, 1.9 %;
-    // - reduced at 0.25 ms: 0.00001, 0.0003, 0.0002, 0.11 %, 0.009 %, 0.17 %.
+    // the oracle 0.5656, 0.9806, 0.9284, 1.1139, 1.0836 deg, 7.688 N):
+    // - reduced at 1 ms: 0.00002, 0.00006, 0.00008, 0.60 %, 0.32 %, 5.9 %;
+    // - reduced at 0.25 ms: 0.00004, 0.00007, 0.00002, 0.12 %, 0.001 %, 1.7 %.
     // The issue's tolerances are 0.02, 0.03, 0.03, 5 %, 10 %, 10 %; the limits here are 2-3x
-    // the figures.
+    // the figures, but the force RMS at 1 ms, whose limit is the issue's 10 % (1.7x: the force
+    // RMS fell from 9.56 to 7.69 N with issue 33's walking model and its difference from
+    // Rapier's stayed about 0.45 N).
     for (dt, limits) in
-        [("0.001", [0.002, 0.004, 0.01, 0.01, 0.005, 0.05]), ("0.00025", [0.0001, 0.001, 0.001, 0.003, 0.0003, 0.005])]
+        [("0.001", [0.002, 0.004, 0.01, 0.015, 0.01, 0.1]), ("0.00025", [0.0001, 0.001, 0.001, 0.003, 0.0003, 0.04])]
     {
         let r = run("reduced", dt);
         let d = [
