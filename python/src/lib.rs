@@ -8,6 +8,7 @@
 //! The Python layer (`pysrc/exoleg/__init__.py`) wraps the results.
 
 mod controller;
+mod obs;
 mod stepwise;
 
 use exoleg::record::{Layout, RecordSink, Row};
@@ -381,7 +382,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(compare_cases, m)?)?;
     m.add_class::<Plan>()?;
-    m.add_class::<controller::Obs>()?;
+    m.add_class::<obs::Obs>()?;
     m.add_class::<stepwise::Simulation>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

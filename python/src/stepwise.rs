@@ -2,7 +2,7 @@
 //! the plumbing every Python run shares: the sinks (columns for numpy, and with `out` the
 //! files `exoleg run` writes) and the summary.
 
-use crate::controller::{read_command, Obs};
+use crate::obs::{read_command, Obs};
 use crate::{load, py_err, ColumnSink, ExoError, ScenarioError};
 use exoleg::control::SampleInput;
 use exoleg::output::OutputDir;

@@ -22,11 +22,11 @@ pub mod model;
 pub mod planar;
 pub mod pose;
 pub mod rapier;
-pub mod reduced;
+pub mod reduced_knee_model;
+pub mod reduced_walking_model;
 pub mod stops;
 pub mod subject;
 pub mod urdf;
-pub mod walker;
 
 pub use error::LegError;
 pub use geometry::{
@@ -50,6 +50,6 @@ pub const BUILTIN_URDFS: [(&str, &str); 2] = [
     ("builtin:exo_leg", include_str!("../../urdf/exo_leg.urdf")),
     ("builtin:exo_leg_small", include_str!("../../urdf/exo_leg_small.urdf")),
 ];
-pub use reduced::{HipMotion, ReducedModel};
+pub use reduced_knee_model::{HipMotion, ReducedModel};
+pub use reduced_walking_model::WalkerModel;
 pub use stops::{EndStops, StopReport, StopSource};
-pub use walker::WalkerModel;

@@ -5,12 +5,12 @@
 
 mod bench;
 mod leg;
-mod reduced;
-mod walker;
+mod reduced_knee_plant;
+mod reduced_walking_plant;
 pub use bench::*;
 pub use leg::*;
-pub use reduced::ReducedLegPlant;
-pub use walker::WalkerPlant;
+pub use reduced_knee_plant::ReducedLegPlant;
+pub use reduced_walking_plant::WalkerPlant;
 
 use crate::error::Result;
 use crate::record::{ContactRow, LegRow};

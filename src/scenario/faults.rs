@@ -103,7 +103,9 @@ fn within(key: &str, name: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Res
     let ok = v.is_finite() && v <= hi && (v > lo || (!open_lo && v == lo));
     match ok {
         true => Ok(v),
-        false => Err((format!("{key}.{name}"), format!("must be in {}{lo}..={hi}, got {v}", if open_lo { ">" } else { "" }))),
+        false => {
+            Err((format!("{key}.{name}"), format!("must be in {}{lo}..={hi}, got {v}", if open_lo { ">" } else { "" })))
+        }
     }
 }
 
@@ -137,7 +139,9 @@ fn sensor_kind(key: &str, f: &FaultSpec) -> Res<S> {
         k => {
             return Err((
                 format!("{key}.kind"),
-                format!("`{k}` is not a sensor fault: dropout, stuck, bias, drift, gain, noise, spikes, saturation, delay"),
+                format!(
+                    "`{k}` is not a sensor fault: dropout, stuck, bias, drift, gain, noise, spikes, saturation, delay"
+                ),
             ))
         }
     })
@@ -148,12 +152,17 @@ fn other_kind(key: &str, target: &str, f: &FaultSpec) -> Res<FaultKind> {
     let k = f.kind.as_str();
     let bad = |list: &str| Err((format!("{key}.kind"), format!("`{k}` is not a `{target}` fault: {list}")));
     Ok(match (target, k) {
-        ("valve", "stuck") => FaultKind::Actuator(A::SpoolStuck(
-            f.value.map(|v| within(key, "value", v, -1.0, 1.0, false)).transpose()?,
-        )),
-        ("valve", "slow") => {
-            FaultKind::Actuator(A::SpoolSlow(within(key, "tau_factor", need(key, "tau_factor", f.tau_factor)?, 1.0, 1e6, false)?))
+        ("valve", "stuck") => {
+            FaultKind::Actuator(A::SpoolStuck(f.value.map(|v| within(key, "value", v, -1.0, 1.0, false)).transpose()?))
         }
+        ("valve", "slow") => FaultKind::Actuator(A::SpoolSlow(within(
+            key,
+            "tau_factor",
+            need(key, "tau_factor", f.tau_factor)?,
+            1.0,
+            1e6,
+            false,
+        )?)),
         ("valve", _) => return bad("stuck, slow"),
         ("leakage", "orifice") => FaultKind::Actuator(A::Leakage {
             area_m2: within(key, "area_m2", need(key, "area_m2", f.area_m2)?, 0.0, 1.0, true)?,
@@ -227,7 +236,10 @@ fn resolve_one(cx: &FaultContext, key: &str, f: &FaultSpec) -> Res<Fault> {
                 )
             })?;
             if !has_channel(cx, ch) {
-                return Err((format!("{key}.target"), format!("the run has no `{t}` sensor (switched off, or no leg)")));
+                return Err((
+                    format!("{key}.target"),
+                    format!("the run has no `{t}` sensor (switched off, or no leg)"),
+                ));
             }
             FaultKind::Sensor(ch, sensor_kind(key, f)?)
         }
@@ -267,12 +279,18 @@ fn onset(cx: &FaultContext, key: &str, f: &FaultSpec) -> Res<Onset> {
         }
         (None, Some("heel_strike")) => {
             if !cx.walking {
-                return Err((format!("{key}.onset_event"), "gait events need a walking run (a gait on the carriage with ground.enabled)".into()));
+                return Err((
+                    format!("{key}.onset_event"),
+                    "gait events need a walking run (a gait on the carriage with ground.enabled)".into(),
+                ));
             }
             let phase_pct = within(key, "onset_phase_pct", f.onset_phase_pct.unwrap_or(0.0), 0.0, 100.0, false)?;
             let after_s = f.onset_after_s.unwrap_or(cx.settle_s);
             if !(0.0..end).contains(&after_s) {
-                return Err((format!("{key}.onset_after_s"), format!("must be within the run, 0..{end} s, got {after_s}")));
+                return Err((
+                    format!("{key}.onset_after_s"),
+                    format!("must be within the run, 0..{end} s, got {after_s}"),
+                ));
             }
             Ok(Onset::HeelStrike { after_s, phase_pct })
         }
@@ -309,7 +327,8 @@ pub fn resolve_faults(specs: &[FaultSpec], cx: &FaultContext) -> Res<Vec<Fault>>
     for (i, f) in specs.iter().enumerate() {
         let key = format!("faults.{i}");
         let fault = resolve_one(cx, &key, f)?;
-        if let Some(j) = out.iter().position(|g| target_of(&g.kind) == target_of(&fault.kind) && may_overlap(g, &fault)) {
+        if let Some(j) = out.iter().position(|g| target_of(&g.kind) == target_of(&fault.kind) && may_overlap(g, &fault))
+        {
             return Err((
                 format!("{key}.target"),
                 format!("contradicts faults.{j} on `{}` at the same time (one fault per target at a time)", f.target),

@@ -110,11 +110,19 @@ pub(super) fn apply_value(table: &mut toml::Table, key: &str, value: toml::Value
             toml::Value::Array(a) => {
                 let at = parts[..=i + 1].join(".");
                 let idx = parts[i + 1].parse::<usize>().map_err(|_| {
-                    Error::input("--set", key, format!("`{}` is an array: index it by number (`{p}.0`)", parts[..=i].join(".")))
+                    Error::input(
+                        "--set",
+                        key,
+                        format!("`{}` is an array: index it by number (`{p}.0`)", parts[..=i].join(".")),
+                    )
                 })?;
                 let n = a.len();
                 let el = a.get_mut(idx).ok_or_else(|| {
-                    Error::input("--set", key, format!("`{at}`: the array has {n} entries (0..{})", n.saturating_sub(1)))
+                    Error::input(
+                        "--set",
+                        key,
+                        format!("`{at}`: the array has {n} entries (0..{})", n.saturating_sub(1)),
+                    )
                 })?;
                 i += 1;
                 if i + 1 == parts.len() {

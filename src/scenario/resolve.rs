@@ -626,7 +626,7 @@ impl Scenario {
         l: &crate::scenario::files::LoadedLeg,
         setup: &mut LegSetup,
     ) -> Result<()> {
-        use crate::leg::walker::WalkerMount;
+        use crate::leg::reduced_walking_model::WalkerMount;
         let mount = match (&setup.body, &setup.ground) {
             (Some(b), _) => WalkerMount::Carriage {
                 pelvis_mass_kg: b.pelvis_mass_kg,
@@ -727,7 +727,8 @@ impl Scenario {
             leg: leg.is_some(),
             sensors: &f.sensors,
         };
-        let faults = crate::scenario::resolve_faults(&f.faults, &fcx).map_err(|(k, m)| Error::input(&self.source_name, k, m))?;
+        let faults =
+            crate::scenario::resolve_faults(&f.faults, &fcx).map_err(|(k, m)| Error::input(&self.source_name, k, m))?;
         let model = Model {
             faults,
             on_stop: f.controller.on_stop,

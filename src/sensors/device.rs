@@ -673,7 +673,11 @@ impl DeviceSensors {
     }
 
     /// [`Self::sample`] with the run's sensor faults (see `SampledSensors::sample_with`).
-    pub fn sample_with(&mut self, truth: &DeviceTruth, faults: Option<super::FaultHook>) -> (DeviceReadings, DeviceCounts) {
+    pub fn sample_with(
+        &mut self,
+        truth: &DeviceTruth,
+        faults: Option<super::FaultHook>,
+    ) -> (DeviceReadings, DeviceCounts) {
         let k = self.samples;
         self.samples += 1;
         let update = self.setup.every.map(|e| k.is_multiple_of(e));

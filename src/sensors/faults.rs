@@ -42,7 +42,9 @@ impl SensorFaults {
                     fault: i,
                     ch,
                     kind,
-                    rng: ChaCha8Rng::seed_from_u64(seed ^ 0xFA17_0000_0000_0000 ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9)),
+                    rng: ChaCha8Rng::seed_from_u64(
+                        seed ^ 0xFA17_0000_0000_0000 ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9),
+                    ),
                     last: f64::NAN,
                     held: None,
                     line: VecDeque::new(),

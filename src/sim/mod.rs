@@ -423,7 +423,8 @@ impl Simulation {
         let active: Vec<Option<f64>> = (0..self.sc.faults.len()).map(|i| self.fault_active(i, t)).collect();
         let at = |i: usize| active[i];
         let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
-        let hook = (!l.sensor_faults.is_empty()).then_some((&mut l.sensor_faults, t, &at as &dyn Fn(usize) -> Option<f64>));
+        let hook =
+            (!l.sensor_faults.is_empty()).then_some((&mut l.sensor_faults, t, &at as &dyn Fn(usize) -> Option<f64>));
         let (y, counts) = l.sensors.sample_with(&truth, hook);
         l.sampled = Some(self.k);
         l.awaiting = Some(self.k);
@@ -444,7 +445,8 @@ impl Simulation {
         // row records it).
         let device_truth = self.device_truth(t, s0.force_rate_n_per_s);
         let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
-        let hook = (!l.sensor_faults.is_empty()).then_some((&mut l.sensor_faults, t, &at as &dyn Fn(usize) -> Option<f64>));
+        let hook =
+            (!l.sensor_faults.is_empty()).then_some((&mut l.sensor_faults, t, &at as &dyn Fn(usize) -> Option<f64>));
         let (device, device_counts) = match (&mut l.device, device_truth) {
             (Some(dev), Some(dt)) => dev.sample_with(&dt, hook),
             _ => Default::default(),
@@ -563,7 +565,11 @@ impl Simulation {
                 ControlOutput::default()
             }
             Err(e) => {
-                return Err(Error::ControllerStopped { time_s: t, controller: ctrl.kind().to_string(), message: e.message })
+                return Err(Error::ControllerStopped {
+                    time_s: t,
+                    controller: ctrl.kind().to_string(),
+                    message: e.message,
+                })
             }
         };
         self.hold(out)

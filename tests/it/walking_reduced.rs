@@ -3,7 +3,7 @@
 //! and what it refuses.
 use crate::common::*;
 use exoleg::integrator::Integrator;
-use exoleg::leg::walker::{Anchors, Applied, WalkerModel, WalkerMount, ANKLE, HIP, KNEE, NG, NX, PZ};
+use exoleg::leg::reduced_walking_model::{Anchors, Applied, WalkerModel, WalkerMount, ANKLE, HIP, KNEE, NG, NX, PZ};
 use exoleg::leg::*;
 
 #[test]

@@ -360,7 +360,7 @@ impl WalkerModel {
     }
 
     fn loop_at(&self, k: f64) -> [f64; 6] {
-        super::reduced::table_at(&self.table, self.lo, self.step, k)
+        super::reduced_knee_model::table_at(&self.table, self.lo, self.step, k)
     }
 
     /// A buffer for every link's kinematics: `stack` when the leg fits, else `heap`.

@@ -1,6 +1,6 @@
 //! The walking leg on the reduced engine (`leg.engine = "reduced"` on the pelvis carriage, or
 //! with the hip fixed or driven over the ground): the planar multibody of
-//! [`crate::leg::walker`] as a plant. With the hydraulic actuator the loop
+//! [`crate::leg::reduced_walking_model`] as a plant. With the hydraulic actuator the loop
 //! integrates its ten states in the same ODE as the hydraulics and the controller
 //! ([`CoupledMechanics`]); with a prescribed force or none, the plant integrates them itself
 //! (RK4 under the step's force, substepped as the loop would). The body's forces (hip,
@@ -17,7 +17,9 @@ use crate::human::{BodyForces, BodyState};
 use crate::integrator::Integrator;
 use crate::leg::geometry::cylinder_kinematics_at;
 use crate::leg::planar::P2;
-use crate::leg::walker::{Anchors, Applied, StepStart, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES};
+use crate::leg::reduced_walking_model::{
+    Anchors, Applied, StepStart, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES,
+};
 use crate::record::{ContactRow, LegRow};
 use crate::sensors::{FootLoad, LegKinematics};
 use std::sync::Arc;
