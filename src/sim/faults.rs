@@ -43,7 +43,7 @@ impl FaultRun {
             started: vec![false; faults.len()],
             stopped: None,
             late: VecDeque::new(),
-            rng: ChaCha8Rng::seed_from_u64(seed ^ 0xC0_4E_0011),
+            rng: ChaCha8Rng::seed_from_u64(seed ^ 0xC04E_0011),
             skip: false,
         }
     }
