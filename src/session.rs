@@ -5,7 +5,7 @@
 
 use crate::control::{ControlOutput, SampleInput};
 use crate::error::Result;
-use crate::metrics::{Summary, SummaryBuilder, WalkingMetrics, WearerMetrics};
+use crate::metrics::{SafetyMetrics, SafetySetup, Summary, SummaryBuilder, WalkingMetrics, WearerMetrics};
 use crate::record::{Layout, MemoryRecord, RecordSink, Row, MAX_LOGGED};
 use crate::sim::{Model, Simulation};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -18,6 +18,7 @@ struct Fan<'a, S: RecordSink + ?Sized> {
     sink: &'a mut S,
     walking: Option<&'a mut WalkingMetrics>,
     wearer: Option<&'a mut WearerMetrics>,
+    safety: Option<&'a mut SafetyMetrics>,
 }
 
 impl<S: RecordSink + ?Sized> RecordSink for Fan<'_, S> {
@@ -25,13 +26,15 @@ impl<S: RecordSink + ?Sized> RecordSink for Fan<'_, S> {
         self.metrics.start(layout)?;
         self.sink.start(layout)?;
         self.walking.as_mut().map_or(Ok(()), |w| w.start(layout))?;
-        self.wearer.as_mut().map_or(Ok(()), |w| w.start(layout))
+        self.wearer.as_mut().map_or(Ok(()), |w| w.start(layout))?;
+        self.safety.as_mut().map_or(Ok(()), |w| w.start(layout))
     }
     fn row(&mut self, row: &Row) -> Result<()> {
         self.metrics.row(row)?;
         self.sink.row(row)?;
         self.walking.as_mut().map_or(Ok(()), |w| w.row(row))?;
-        self.wearer.as_mut().map_or(Ok(()), |w| w.row(row))
+        self.wearer.as_mut().map_or(Ok(()), |w| w.row(row))?;
+        self.safety.as_mut().map_or(Ok(()), |w| w.row(row))
     }
 }
 
@@ -51,6 +54,7 @@ pub struct Session<S: RecordSink> {
     metrics: SummaryBuilder,
     walking: Option<WalkingMetrics>,
     wearer: Option<WearerMetrics>,
+    safety: Option<SafetyMetrics>,
     sink: S,
     /// Time spent simulating (s), for `steps_per_second`.
     wall: Duration,
@@ -76,9 +80,10 @@ impl<S: RecordSink> Session<S> {
         });
         let walking =
             layout.contact.then(|| WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data.clone()));
+        let safety = sc.leg().map(|l| SafetyMetrics::new(safety_setup(&sc, l, data.as_deref())));
         let wearer =
             data.filter(|_| layout.contact).map(|d| WearerMetrics::new(sc.metrics.settle_s, d, sc.cuff_limits));
-        Ok(Self { sim, metrics, walking, wearer, sink, wall: Duration::ZERO, started: false, cancel: None })
+        Ok(Self { sim, metrics, walking, wearer, safety, sink, wall: Duration::ZERO, started: false, cancel: None })
     }
 
     /// Stop [`Self::run_to_end`] with [`crate::Error::Interrupted`] when `flag` is set.
@@ -114,6 +119,7 @@ impl<S: RecordSink> Session<S> {
             sink: &mut self.sink,
             walking: self.walking.as_mut(),
             wearer: self.wearer.as_mut(),
+            safety: self.safety.as_mut(),
         }
         .start(&layout)?;
         self.started = true;
@@ -128,6 +134,7 @@ impl<S: RecordSink> Session<S> {
             sink: &mut self.sink,
             walking: self.walking.as_mut(),
             wearer: self.wearer.as_mut(),
+            safety: self.safety.as_mut(),
         };
         self.sim.advance(&mut fan)
     }
@@ -187,6 +194,7 @@ impl<S: RecordSink> Session<S> {
                 sink: &mut s.sink,
                 walking: s.walking.as_mut(),
                 wearer: s.wearer.as_mut(),
+                safety: s.safety.as_mut(),
             };
             s.sim.finish(&mut fan)
         })?;
@@ -195,6 +203,7 @@ impl<S: RecordSink> Session<S> {
         let mut summary = self.metrics.finish(self.wall.as_secs_f64());
         summary.contact = self.walking.map(|w| w.finish());
         summary.wearer = self.wearer.and_then(|w| w.finish());
+        summary.safety = self.safety.map(|s| s.finish(sim.controller_stop().map(|(t, _)| t)));
         summary.engine =
             sc.leg().map(|l| if l.reduced.is_some() || l.walker.is_some() { "reduced" } else { "rapier" }.to_string());
         (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();
@@ -206,6 +215,28 @@ impl<S: RecordSink> Session<S> {
                 Some(crate::metrics::ControllerWarnings { samples: n, last: last.unwrap_or_default() });
         }
         Ok(Finished { summary, design: sim.controller_design(), sink: self.sink })
+    }
+}
+
+/// The safety figures' setup of a leg run: the limits, the URDF's knee range, the wearer's
+/// knee range and largest knee acceleration in the data (walking runs), the cuffs' pain
+/// limits.
+fn safety_setup(sc: &Model, leg: &crate::plant::LegSetup, data: Option<&crate::reference::WalkingData>) -> SafetySetup {
+    let data = data.map(|w| {
+        let g = &w.gait;
+        let (mut lo, mut hi, mut acc) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+        for i in 0..400 {
+            let k = g.knee_at(i as f64 * g.stride_s / 400.0);
+            (lo, hi, acc) = (lo.min(k.value), hi.max(k.value), acc.max(k.accel.abs()));
+        }
+        ((lo, hi), acc)
+    });
+    SafetySetup {
+        limits: sc.safety,
+        settle_s: sc.metrics.settle_s,
+        urdf_knee_rad: leg.model.knee_range_rad(),
+        data,
+        cuff_pain_n: [sc.cuff_limits.thigh_pain_n, sc.cuff_limits.shank_pain_n],
     }
 }
 

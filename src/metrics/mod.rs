@@ -2,9 +2,11 @@
 //! rows of a run ([`SummaryBuilder`] is a [`RecordSink`]), so a run of any length needs
 //! constant memory for its figures. Used by the CLI, the studies and the tests.
 
+pub mod safety;
 pub mod walking;
 pub mod wearer;
 pub use walking::{ContactSummary, DatasetComparison, WalkingMetrics};
+pub use safety::{SafetyLimits, SafetyMetrics, SafetySetup, SafetySummary};
 pub use wearer::{CuffLimits, WearerMetrics, WearerSummary};
 
 use crate::error::Result;
@@ -170,6 +172,9 @@ pub struct Summary {
     /// Samples a controller flagged with a warning (a C plugin's warning status), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub controller_warnings: Option<ControllerWarnings>,
+    /// What would hurt the wearer (leg runs; see [`safety`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub safety: Option<SafetySummary>,
     /// What the wearer got (walking runs; see [`wearer`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wearer: Option<WearerSummary>,
@@ -556,6 +561,7 @@ impl SummaryBuilder {
             steps_per_second: if wall_time_s > 0.0 { steps as f64 / wall_time_s } else { f64::INFINITY },
             contact: None,
             wearer: None,
+            safety: None,
             controller_warnings: None,
             end_stops: None,
             engine: None,

@@ -266,6 +266,8 @@ pub struct ScenarioFile {
     /// `[cuff_limits]`: the comfort and pain limits of the cuff interaction forces (the
     /// wearer's figures of walking runs).
     pub cuff_limits: crate::metrics::CuffLimits,
+    /// `[safety]`: the limits of the safety verdicts.
+    pub safety: crate::metrics::SafetyLimits,
     /// `[[faults]]`: what breaks, when (see `crate::faults`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub faults: Vec<crate::faults::FaultSpec>,
@@ -331,6 +333,7 @@ impl Default for ScenarioFile {
             metrics: MetricsSection::default(),
             criteria: Criteria::default(),
             cuff_limits: crate::metrics::CuffLimits::default(),
+            safety: crate::metrics::SafetyLimits::default(),
             faults: Vec::new(),
             output: OutputSection::default(),
             subject: None,

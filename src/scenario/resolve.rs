@@ -762,6 +762,7 @@ impl Scenario {
             disturbance: f.disturbance.clone(),
             sensors: f.sensors.clone(),
             cuff_limits: f.cuff_limits,
+            safety: f.safety,
         };
         Ok(ResolvedScenario {
             source_name: self.source_name.clone(),

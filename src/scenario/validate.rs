@@ -487,6 +487,19 @@ fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
             format!("must be shorter than sim.duration_s = {} (nothing would be left to measure)", f.sim.duration_s),
         ));
     }
+    let sf = &f.safety;
+    c.non_negative("safety.knee_margin_deg", sf.knee_margin_deg)?;
+    c.positive("safety.safe_moment_nm", sf.safe_moment_nm)?;
+    c.non_negative("safety.safe_hold_s", sf.safe_hold_s)?;
+    for (k, v) in [
+        ("safety.max_knee_accel_rad_s2", sf.max_knee_accel_rad_s2),
+        ("safety.max_knee_jerk_rad_s3", sf.max_knee_jerk_rad_s3),
+        ("safety.max_time_to_safe_s", sf.max_time_to_safe_s),
+    ] {
+        if let Some(v) = v {
+            c.positive(k, v)?;
+        }
+    }
     let cl = &f.cuff_limits;
     for (k, v) in [("comfort_n", cl.comfort_n), ("thigh_pain_n", cl.thigh_pain_n), ("shank_pain_n", cl.shank_pain_n)] {
         c.positive(&format!("cuff_limits.{k}"), v)?;

@@ -69,6 +69,8 @@ pub struct Model {
     pub faults: Vec<crate::faults::Fault>,
     /// What a sampled controller's stop does (`controller.on_stop`).
     pub on_stop: crate::control::OnStop,
+    /// The safety verdicts' limits (`[safety]`).
+    pub safety: crate::metrics::SafetyLimits,
     /// The cuff interaction-force limits of the wearer's figures (`[cuff_limits]`).
     pub cuff_limits: crate::metrics::CuffLimits,
 }
