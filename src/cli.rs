@@ -152,6 +152,32 @@ pub enum Command {
         #[command(flatten)]
         common: SweepArgs,
     },
+    /// Fault campaign: every failure mode of the matrix (sensor, valve, leakage, supply, power
+    /// and controller faults; by default the ones that apply to the scenario) at 10 onsets
+    /// across the gait cycle and 2 severities, each run scored by what would hurt the wearer
+    /// (`[safety]`) next to the unfaulted baseline. Writes runs.jsonl, faults.csv, faults.png
+    /// (the heat map), fmea.csv and fmea.md; prints the FMEA table. Exit code 4 if any run
+    /// breaks a safety criterion.
+    Faults {
+        /// Base scenario (TOML): a leg run, without [[faults]].
+        scenario: PathBuf,
+        /// The campaign's failure modes, severities and onsets (TOML; see --print-matrix).
+        #[arg(long, value_name = "FILE")]
+        matrix: Option<PathBuf>,
+        /// Print the matrix the campaign would run (TOML, a starting point for --matrix) and exit.
+        #[arg(long)]
+        print_matrix: bool,
+        /// Strides a walking run goes on after the latest its fault can start (0: the
+        /// scenario's duration).
+        #[arg(long, default_value_t = study::faults::DEFAULT_OBSERVE_STRIDES)]
+        observe_strides: f64,
+        /// Output directory.
+        #[arg(long, default_value = "out/faults")]
+        out: PathBuf,
+        /// Shared options.
+        #[command(flatten)]
+        common: SweepArgs,
+    },
     /// Merge the shard folders of a sharded sweep or robustness report into what the
     /// unsharded run writes (runs.jsonl, aggregate.csv, plots). Every shard exactly once.
     Merge {
@@ -420,11 +446,64 @@ fn run_study(
     let (title, agg) = (done.title, done.aggregate);
     let wall = start.elapsed().as_secs_f64();
     println!("{title}; {wall:.2} s; {}", out.display());
-    print!("{}", agg.csv());
-    match study {
-        shard::StudyKind::Robustness { .. } if common.shard.is_none() => robustness_verdict(&base.file, &agg, &out),
-        _ => Ok(EXIT_OK),
+    match (&study, done.faults) {
+        (shard::StudyKind::Faults { .. }, Some(r)) => faults_verdict(&r, &out),
+        (shard::StudyKind::Robustness { .. }, _) if common.shard.is_none() => {
+            print!("{}", agg.csv());
+            robustness_verdict(&base.file, &agg, &out)
+        }
+        _ => {
+            print!("{}", agg.csv());
+            Ok(EXIT_OK)
+        }
     }
+}
+
+/// A fault campaign's verdict: its FMEA table; exit 4 if any run breaks a safety criterion.
+fn faults_verdict(r: &study::faults::CampaignReport, out: &Path) -> Result<i32> {
+    print!("{}", r.fmea);
+    println!(
+        "{} of {} runs break a safety criterion ({} faulted runs with a fault-induced hazard); report in {}",
+        r.hazard_runs,
+        r.runs,
+        r.fault_induced_runs,
+        out.display()
+    );
+    if r.hazard_runs == 0 {
+        Ok(EXIT_OK)
+    } else {
+        let base = if r.baseline_broken.is_empty() {
+            String::new()
+        } else {
+            format!(" (the baseline itself breaks {})", r.baseline_broken.join(", "))
+        };
+        Err(Error::Criteria(format!("{} of {} campaign runs break a safety criterion{base}", r.hazard_runs, r.runs)))
+    }
+}
+
+/// `exoleg faults`.
+fn cmd_faults(
+    scenario: PathBuf,
+    matrix: Option<PathBuf>,
+    print_matrix: bool,
+    observe_strides: f64,
+    out: PathBuf,
+    common: SweepArgs,
+) -> Result<i32> {
+    let base = Scenario::load(Some(&scenario), &common.parallel.sets)?;
+    warn_base(&base);
+    let matrix = matrix.as_deref().map(study::faults::read_matrix).transpose()?;
+    let res = crate::scenario::Resources::new();
+    let c = study::faults::campaign(&base, matrix, observe_strides, None, &res)?;
+    for n in &c.notes {
+        eprintln!("note: {n}");
+    }
+    if print_matrix {
+        print!("{}", c.matrix.to_toml()?);
+        return Ok(EXIT_OK);
+    }
+    let study = shard::StudyKind::Faults { layout: c.layout };
+    run_study(&c.base, &base.source_name, &c.plan, study, out, false, &common)
 }
 
 /// The robustness report's verdict: exit 4 unless every run passes.
@@ -455,9 +534,10 @@ fn cmd_merge(shards: Vec<PathBuf>, out: PathBuf) -> Result<i32> {
     let m = shard::merge(&shards, &out)?;
     println!("{}; {} shards merged into {}", m.title, shards.len(), out.display());
     print!("{}", m.aggregate.csv());
-    match m.meta.study {
-        shard::StudyKind::Robustness { .. } => robustness_verdict(&m.meta.scenario, &m.aggregate, &out),
-        shard::StudyKind::Sweep => Ok(EXIT_OK),
+    match (&m.meta.study, &m.faults) {
+        (shard::StudyKind::Faults { .. }, Some(r)) => faults_verdict(r, &out),
+        (shard::StudyKind::Robustness { .. }, _) => robustness_verdict(&m.meta.scenario, &m.aggregate, &out),
+        _ => Ok(EXIT_OK),
     }
 }
 
@@ -607,6 +687,9 @@ pub fn run(cli: Cli) -> Result<i32> {
         }
         Command::Robustness { scenario, percent, samples, out, common } => {
             cmd_robustness(scenario, percent, samples, out, common)
+        }
+        Command::Faults { scenario, matrix, print_matrix, observe_strides, out, common } => {
+            cmd_faults(scenario, matrix, print_matrix, observe_strides, out, common)
         }
         Command::Merge { shards, out } => cmd_merge(shards, out),
         Command::Compare { firmware: true, json, sets, .. } => cmd_firmware(json, sets),

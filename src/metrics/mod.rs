@@ -5,8 +5,8 @@
 pub mod safety;
 pub mod walking;
 pub mod wearer;
-pub use walking::{ContactSummary, DatasetComparison, WalkingMetrics};
 pub use safety::{SafetyLimits, SafetyMetrics, SafetySetup, SafetySummary};
+pub use walking::{ContactSummary, DatasetComparison, WalkingMetrics};
 pub use wearer::{CuffLimits, WearerMetrics, WearerSummary};
 
 use crate::error::Result;

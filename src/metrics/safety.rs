@@ -77,6 +77,8 @@ pub struct SafetySummary {
     pub beyond_wearer_range_s: f64,
     /// The deepest excursion beyond the wearer's range (deg).
     pub beyond_wearer_range_deg: f64,
+    /// The knee's range after the run-in (deg, [min, max]; None without rows after it).
+    pub knee_range_deg: Option<[f64; 2]>,
     /// The URDF's knee limits (deg).
     pub urdf_knee_limits_deg: [f64; 2],
     /// Time beyond them (s).
@@ -139,6 +141,7 @@ pub struct SafetyMetrics {
     prev_accel: Option<(f64, f64)>,
     beyond: [(f64, f64); 2],
     peaks: [f64; 5],
+    knee_range_deg: [f64; 2],
     onset: Option<f64>,
     safe_since: Option<f64>,
     safe_at: Option<f64>,
@@ -158,6 +161,7 @@ impl SafetyMetrics {
             prev_accel: None,
             beyond: [(0.0, 0.0); 2],
             peaks: [0.0; 5],
+            knee_range_deg: [f64::INFINITY, f64::NEG_INFINITY],
             onset: None,
             safe_since: None,
             safe_at: None,
@@ -240,6 +244,7 @@ impl SafetyMetrics {
             wearer_knee_range_deg: self.wearer_range_deg(),
             beyond_wearer_range_s: self.beyond[0].0,
             beyond_wearer_range_deg: self.beyond[0].1,
+            knee_range_deg: (self.knee_range_deg[0] <= self.knee_range_deg[1]).then_some(self.knee_range_deg),
             urdf_knee_limits_deg: urdf,
             beyond_urdf_limits_s: self.beyond[1].0,
             beyond_urdf_limits_deg: self.beyond[1].1,
@@ -276,6 +281,7 @@ impl RecordSink for SafetyMetrics {
         }
         self.rows_seen += 1;
         let q = leg.knee_angle_deg;
+        self.knee_range_deg = [self.knee_range_deg[0].min(q), self.knee_range_deg[1].max(q)];
         let dt = dt.unwrap_or(0.0);
         let urdf = [self.setup.urdf_knee_rad.0.to_degrees(), self.setup.urdf_knee_rad.1.to_degrees()];
         for (i, range) in [self.wearer_range_deg(), Some(urdf)].into_iter().enumerate() {

@@ -431,3 +431,91 @@ pub fn histograms_png(path: &Path, title: &str, panels: &[(&str, Vec<f64>, Optio
     let img = image_png(&buf, w, h).map_err(perr)?;
     write_atomic(path, &img)
 }
+
+/// The colour of a margin to a limit (% of the limit left; negative: broken by that much):
+/// green at 100 %, yellow at 0, red at -100 % and beyond; None (a failed run) black.
+pub fn margin_colour(margin_pct: Option<f64>) -> RGBColor {
+    let lerp = |a: (u8, u8, u8), b: (u8, u8, u8), f: f64| {
+        let m = |x: u8, y: u8| (x as f64 + (y as f64 - x as f64) * f.clamp(0.0, 1.0)).round() as u8;
+        RGBColor(m(a.0, b.0), m(a.1, b.1), m(a.2, b.2))
+    };
+    let (green, yellow, orange, red) = ((46, 160, 67), (250, 220, 60), (245, 130, 40), (170, 20, 20));
+    match margin_pct {
+        None => RGBColor(0, 0, 0),
+        Some(m) if m >= 0.0 => lerp(yellow, green, m / 100.0),
+        Some(m) if m >= -20.0 => lerp(yellow, orange, -m / 20.0),
+        Some(m) => lerp(orange, red, (-m - 20.0) / 80.0),
+    }
+}
+
+/// A heat map (`title`'s parts between "; " on lines of their own): one row per `rows`
+/// label, one column per `cols` label, each cell coloured by
+/// its margin ([`margin_colour`]) with its text (`cells[r][c]`: margin %, None for a failed
+/// run; `marks[r][c]`: drawn with a frame and a `!`), a colour bar explaining `legend`.
+pub fn heatmap_png(
+    path: &Path,
+    title: &str,
+    rows: &[String],
+    cols: &[String],
+    cells: &[Vec<Option<f64>>],
+    marks: &[Vec<bool>],
+    legend: &str,
+) -> Result<()> {
+    ensure_font();
+    let lines: Vec<&str> = title.split("; ").collect();
+    let (cell_w, cell_h, left) = (74i32, 22i32, 260i32);
+    let top = 50 + 22 * lines.len() as i32;
+    let w = (left + cell_w * cols.len().max(1) as i32 + 40) as u32;
+    let h = (top + cell_h * rows.len().max(1) as i32 + 110) as u32;
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    let perr = |e: String| Error::Write { path: path.to_path_buf(), message: format!("plot: {e}") };
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| perr(e.to_string()))?;
+        let font = |s: i32| ("sans-serif", s).into_font();
+        let d = |e: DrawingAreaErrorKind<_>| perr(e.to_string());
+        for (i, l) in lines.iter().enumerate() {
+            root.draw_text(l, &font(17).color(&BLACK), (10, 10 + 22 * i as i32)).map_err(d)?;
+        }
+        for (c, label) in cols.iter().enumerate() {
+            let x = left + c as i32 * cell_w + 6;
+            root.draw_text(label, &font(13).color(&BLACK), (x, top - 20)).map_err(d)?;
+        }
+        for (r, label) in rows.iter().enumerate() {
+            let y = top + r as i32 * cell_h;
+            root.draw_text(label, &font(13).color(&BLACK), (10, y + 4)).map_err(d)?;
+            for c in 0..cols.len() {
+                let (x0, m) = (left + c as i32 * cell_w, cells[r][c]);
+                let fill = margin_colour(m);
+                root.draw(&Rectangle::new([(x0, y), (x0 + cell_w - 2, y + cell_h - 2)], fill.filled())).map_err(d)?;
+                let text = match m {
+                    None => "failed".to_string(),
+                    Some(m) if marks[r][c] => format!("! {m:.0}"),
+                    Some(m) => format!("{m:.0}"),
+                };
+                let ink = if m.is_none_or(|m| m < -60.0) { WHITE } else { BLACK };
+                root.draw_text(&text, &font(12).color(&ink), (x0 + 8, y + 4)).map_err(d)?;
+                if marks[r][c] {
+                    root.draw(&Rectangle::new([(x0, y), (x0 + cell_w - 2, y + cell_h - 2)], BLACK.stroke_width(2)))
+                        .map_err(d)?;
+                }
+            }
+        }
+        // The colour bar: -100 % .. 100 %.
+        let y = top + cell_h * rows.len() as i32 + 30;
+        let bar_w = (w as i32 - left - 60).max(200);
+        for i in 0..bar_w {
+            let m = -100.0 + 200.0 * i as f64 / bar_w as f64;
+            root.draw(&Rectangle::new([(left + i, y), (left + i + 1, y + 14)], margin_colour(Some(m)).filled()))
+                .map_err(d)?;
+        }
+        for m in [-100, -50, 0, 50, 100] {
+            let x = left + ((m + 100) as f64 / 200.0 * bar_w as f64) as i32;
+            root.draw_text(&format!("{m}"), &font(12).color(&BLACK), (x - 8, y + 18)).map_err(d)?;
+        }
+        root.draw_text(legend, &font(13).color(&BLACK), (10, y + 40)).map_err(d)?;
+        root.present().map_err(|e| perr(e.to_string()))?;
+    }
+    let img = image_png(&buf, w, h).map_err(perr)?;
+    write_atomic(path, &img)
+}

@@ -198,6 +198,13 @@ fn other_kind(key: &str, target: &str, f: &FaultSpec) -> Res<FaultKind> {
     })
 }
 
+/// Whether a run with `sensors` (a leg run when `leg`) has the reading channel `name` (a
+/// sensor switched off, or the device's on the bench, has none).
+pub fn reading_available(sensors: &crate::sensors::SensorParams, leg: bool, name: &str) -> bool {
+    let cx = FaultContext { duration_s: 0.0, settle_s: 0.0, sample_period_s: 0.0, walking: false, leg, sensors };
+    sensor_channel(name).is_some_and(|ch| has_channel(&cx, ch))
+}
+
 /// Whether the run has A/D channel `ch` (a sensor switched off, or the device's on the bench,
 /// has none).
 fn has_channel(cx: &FaultContext, ch: usize) -> bool {

@@ -717,8 +717,7 @@ impl Scenario {
             ),
             None => None,
         };
-        let walking = matches!(&plant, PlantSetup::Leg(l) if l.ground.is_some()
-            && l.body.as_ref().is_some_and(|b| matches!(b.targets, crate::human::BodyTargets::Walking(_))));
+        let walking = crate::sim::is_walking(&plant);
         let fcx = crate::scenario::FaultContext {
             duration_s: f.sim.duration_s,
             settle_s: f.metrics.settle_s,

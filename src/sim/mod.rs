@@ -47,7 +47,7 @@ mod stage;
 mod state;
 
 pub use crate::integrator::Integrator;
-pub use model::Model;
+pub use model::{is_walking, Model};
 pub use state::{PistonState, State, PLANT_LEN};
 
 use crate::control::{ControlOutput, Controller, DiscreteController, Measurement, SampleInput, MAX_LOGGED};
@@ -485,7 +485,8 @@ impl Simulation {
     }
 
     /// Step 2 of a sampled step: hold the controller's output (clipped to the valve limit, and
-    /// marked saturated when it was) until the next sample. A non-finite command stops the run.
+    /// marked saturated when it was) until the next sample. A non-finite command stops the run
+    /// (under `controller.on_stop = "failsafe"`: the device goes to its fail-safe state).
     pub fn hold(&mut self, out: ControlOutput) -> Result<()> {
         let t = self.t_s();
         let kind = match &self.control {
@@ -494,13 +495,19 @@ impl Simulation {
                 return Err(Error::Usage("hold(): the run's controller is continuous".into()))
             }
         };
-        if !out.valve_command.is_finite() {
+        let out = if out.valve_command.is_finite() {
+            out
+        } else if self.sc.on_stop == crate::control::OnStop::Failsafe {
+            // A stop like any other: the device goes to its fail-safe state.
+            self.go_failsafe(t, format!("the valve command is {}", out.valve_command));
+            ControlOutput::default()
+        } else {
             return Err(Error::ControllerStopped {
                 time_s: t,
                 controller: kind,
                 message: format!("the valve command is {}", out.valve_command),
             });
-        }
+        };
         let out = self.sc.valve_limit.apply(out);
         let out = if self.sc.faults.is_empty() && self.faults.stopped.is_none() { out } else { self.timed_output(out) };
         let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
@@ -831,13 +838,16 @@ impl Simulation {
         (self.max_substeps, self.substepped_steps)
     }
 
-    /// Stop on a non-finite state or an implausible spool.
+    /// Stop on a non-finite state (a stopped controller's aside) or an implausible spool.
     fn check(&self, t: f64) -> Result<()> {
         let mech = self.mech_state.iter().zip(self.mech_names).find(|(v, _)| !v.is_finite());
         let bad = mech.map(|(v, n)| (n.to_string(), *v));
         let bad =
             bad.or_else(|| self.state.first_non_finite(&self.controller_state, &self.controller_names)).or_else(|| {
                 match &self.control {
+                    // A stopped controller (the device in its fail-safe state) is not called
+                    // again: its state no longer matters.
+                    ControlBlock::Sampled(_) if self.faults.stopped.is_some() => None,
                     ControlBlock::Sampled(l) => l.ctrl.as_ref().and_then(|c| c.first_non_finite()),
                     ControlBlock::Continuous(_) => None,
                 }

@@ -83,4 +83,16 @@ impl Model {
             PlantSetup::Bench(_) => None,
         }
     }
+
+    /// Whether the run walks: a leg on the ground with the body following a gait (the runs
+    /// that detect gait events).
+    pub fn walking(&self) -> bool {
+        is_walking(&self.plant)
+    }
+}
+
+/// Whether `plant` walks (see [`Model::walking`]).
+pub fn is_walking(plant: &PlantSetup) -> bool {
+    matches!(plant, PlantSetup::Leg(l) if l.ground.is_some()
+        && l.body.as_ref().is_some_and(|b| matches!(b.targets, crate::human::BodyTargets::Walking(_))))
 }

@@ -35,6 +35,11 @@ pub enum StudyKind {
         /// Half-width of the variation (%).
         percent: f64,
     },
+    /// `exoleg faults`: also `faults.csv`, `faults.png`, `fmea.csv` and `fmea.md`.
+    Faults {
+        /// The runs' layout (modes, severities, onsets).
+        layout: super::faults::CampaignLayout,
+    },
 }
 
 /// `shard.json`.
@@ -106,18 +111,25 @@ pub fn write_plan(plan: &Plan, out: &mut dyn Write) -> Result<()> {
 }
 
 /// Write the files a finished study has besides `runs.jsonl` (`aggregate.csv`, and for a
-/// robustness report `robustness.png`) into `dir`. Returns the report's title line.
+/// robustness report `robustness.png`, for a fault campaign its tables and heat map) into
+/// `dir`. Returns the report's title line, and a campaign's findings.
 pub fn write_study_outputs(
     dir: &Path,
     study: &StudyKind,
     base: &ScenarioFile,
     source: &str,
     agg: &Aggregate,
-) -> Result<String> {
+) -> Result<(String, Option<super::faults::CampaignReport>)> {
     output::write_atomic(&dir.join("aggregate.csv"), agg.csv().as_bytes())?;
     match study {
-        StudyKind::Sweep => Ok(format!("{} runs ({} failed)", agg.runs, agg.failed)),
-        StudyKind::Robustness { percent } => robustness::write_report_png(dir, base, source, *percent, agg),
+        StudyKind::Sweep => Ok((format!("{} runs ({} failed)", agg.runs, agg.failed), None)),
+        StudyKind::Robustness { percent } => {
+            Ok((robustness::write_report_png(dir, base, source, *percent, agg)?, None))
+        }
+        StudyKind::Faults { layout } => {
+            let r = super::faults::write_outputs(dir, layout, base, source)?;
+            Ok((r.title.clone(), Some(r)))
+        }
     }
 }
 
@@ -157,6 +169,9 @@ pub fn parse_meta(name: &str, text: &str) -> Result<ShardMeta> {
     let meta: ShardMeta = serde_json::from_value(v)
         .map_err(|e| Error::input(p.display().to_string(), "shard.json", format!("not a shard: {e}")))?;
     meta.plan.check().map_err(|m| Error::input(p.display().to_string(), "plan", m))?;
+    if let StudyKind::Faults { layout } = &meta.study {
+        layout.check(meta.plan.len()).map_err(|m| Error::input(p.display().to_string(), "study.layout", m))?;
+    }
     if meta.plan.len() != meta.runs {
         return Err(Error::input(
             p.display().to_string(),
@@ -245,6 +260,8 @@ pub struct Merged {
     pub meta: ShardMeta,
     /// The aggregated runs.
     pub aggregate: Aggregate,
+    /// A fault campaign's findings.
+    pub faults: Option<super::faults::CampaignReport>,
 }
 
 /// Open a shard's `runs.jsonl`: a regular file (a device, FIFO or folder is refused before it
@@ -381,9 +398,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Merged> {
     f.sync_all().map_err(werr)?;
     drop(f);
     let meta = shards.into_iter().next().map(|(_, m)| m).ok_or_else(|| Error::input("merge", "SHARDS", "no shard"))?;
-    let title = write_study_outputs(dir.path(), &meta.study, &meta.scenario, &meta.source_name, &agg)?;
+    let (title, faults) = write_study_outputs(dir.path(), &meta.study, &meta.scenario, &meta.source_name, &agg)?;
     dir.commit()?;
-    Ok(Merged { title, meta, aggregate: agg })
+    Ok(Merged { title, meta, aggregate: agg, faults })
 }
 
 /// What a study run produced.
@@ -393,6 +410,8 @@ pub struct StudyDone {
     pub title: String,
     /// The aggregated runs (this shard's, when sharded).
     pub aggregate: Aggregate,
+    /// A fault campaign's findings (the whole plan's).
+    pub faults: Option<super::faults::CampaignReport>,
 }
 
 /// Run a study's plan (all of it, or the shard in `opts.shard` when `sharded`) into the folder
@@ -419,6 +438,7 @@ pub fn run_study_into(
     let agg = super::sweep::run_plan(base, plan, &res, opts, run_outputs.then_some(dir.path()), &mut w)?;
     w.flush().map_err(werr)?;
     drop(w);
+    let mut faults = None;
     let title = if sharded {
         let (k, n) = opts.shard;
         let meta = ShardMeta {
@@ -434,8 +454,10 @@ pub fn run_study_into(
         write_shard_meta(dir.path(), &meta)?;
         format!("shard {k}/{n}: {} runs ({} failed)", agg.runs, agg.failed)
     } else {
-        write_study_outputs(dir.path(), study, &base.file, source_name, &agg)?
+        let (title, report) = write_study_outputs(dir.path(), study, &base.file, source_name, &agg)?;
+        faults = report;
+        title
     };
     dir.commit()?;
-    Ok(StudyDone { title, aggregate: agg })
+    Ok(StudyDone { title, aggregate: agg, faults })
 }

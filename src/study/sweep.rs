@@ -78,9 +78,12 @@ pub fn value_at(s: &Scenario, key: &str) -> Result<(f64, bool)> {
     let v = toml::Value::try_from(&s.file).map_err(|e| Error::input(&s.source_name, key, e.to_string()))?;
     let mut cur = &v;
     for part in key.split('.') {
-        cur = cur
-            .get(part)
-            .ok_or_else(|| Error::input(&s.source_name, key, "no such key (or it has no value to vary)"))?;
+        // An array of tables (`[[faults]]`) is indexed by number (`faults.0.onset_s`).
+        let next = match (cur, part.parse::<usize>()) {
+            (toml::Value::Array(a), Ok(i)) => a.get(i),
+            _ => cur.get(part),
+        };
+        cur = next.ok_or_else(|| Error::input(&s.source_name, key, "no such key (or it has no value to vary)"))?;
     }
     match cur {
         toml::Value::Float(x) => Ok((*x, false)),
@@ -112,6 +115,8 @@ pub struct Varied {
 pub enum Plan {
     /// Full factorial, first axis varying slowest.
     Grid(Vec<(String, Vec<String>)>),
+    /// Runs listed one by one, each with its overrides (a fault campaign's).
+    Runs(Vec<Vec<String>>),
     /// `n` random draws.
     MonteCarlo {
         /// Number of runs.
@@ -166,6 +171,7 @@ impl Plan {
     pub fn len(&self) -> usize {
         match self {
             Plan::Grid(axes) => axes.iter().try_fold(1usize, |a, (_, v)| a.checked_mul(v.len())).unwrap_or(usize::MAX),
+            Plan::Runs(runs) => runs.len(),
             Plan::MonteCarlo { n, .. } => *n,
         }
     }
@@ -192,7 +198,7 @@ impl Plan {
                     Err("a distribution or base value is not finite".into())
                 }
             }
-            Plan::Grid(_) => Ok(()),
+            Plan::Grid(_) | Plan::Runs(_) => Ok(()),
         }
     }
 
@@ -213,6 +219,7 @@ impl Plan {
                 }
                 out
             }
+            Plan::Runs(runs) => runs.get(i).cloned().unwrap_or_default(),
             Plan::MonteCarlo { vary, seed, .. } => {
                 let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0000_0000);
                 rng.set_stream(i as u64);
