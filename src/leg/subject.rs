@@ -192,6 +192,17 @@ fn body(s: &SubjectBody) -> ([Segment; 3], f64, f64, &'static Template) {
     ([thigh, shank, foot], ankle * leg_scale, k, template)
 }
 
+/// How every URDF [`scaled_urdf`] writes begins.
+const SCALED_URDF_HEAD: &str = "<?xml version=\"1.0\"?>\n<!-- exoleg: the built-in leg scaled to a ";
+
+/// True when `f` is a URDF `exoleg urdf` wrote (it begins as [`scaled_urdf`]'s do, and is
+/// small): the one file `exoleg urdf --out` replaces.
+pub fn is_scaled_urdf(f: &mut std::fs::File, len: u64) -> bool {
+    use std::io::Read;
+    let mut head = vec![0u8; SCALED_URDF_HEAD.len()];
+    len < 1 << 20 && f.read_exact(&mut head).is_ok() && head == SCALED_URDF_HEAD.as_bytes()
+}
+
 /// The URDF of the built-in leg scaled to `s` (see the module doc). `s` must be valid
 /// (positive, finite; checked by the scenario).
 pub fn scaled_urdf(s: &SubjectBody) -> String {

@@ -12,6 +12,7 @@ mod firmware;
 mod fmu;
 mod gait;
 mod hardening;
+mod hardening3;
 mod hostile;
 mod leg_coupled;
 mod leg_ground;
