@@ -252,11 +252,7 @@ pub struct Merged {
 fn open_runs(dir: &Path) -> Result<(PathBuf, std::fs::File)> {
     let p = dir.join("runs.jsonl");
     let bad = |m: String| Error::input(p.display().to_string(), "runs.jsonl", m);
-    let meta = std::fs::metadata(&p).map_err(|e| bad(e.to_string()))?;
-    if !meta.is_file() {
-        return Err(bad("not a regular file".into()));
-    }
-    let f = std::fs::File::open(&p).map_err(|e| bad(e.to_string()))?;
+    let (f, _) = crate::fsio::open_regular(&p).map_err(bad)?;
     Ok((p, f))
 }
 

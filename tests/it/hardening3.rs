@@ -207,3 +207,69 @@ fn inputs_are_regular_files_and_the_fmu_library_is_exolegs() {
         assert!(!stderr(&o).contains("not found"), "{args:?}: {}", stderr(&o));
     }
 }
+
+fn plugin_sets(lib: &Path, params: &str) -> Vec<String> {
+    vec![
+        "--set".into(),
+        "controller.kind=\"plugin\"".into(),
+        "--set".into(),
+        format!("controller.plugin.library={:?}", lib.display().to_string()),
+        "--set".into(),
+        format!("controller.plugin.params={{{params}}}"),
+        "--set".into(),
+        "controller.sample_period_s=0.001".into(),
+        "--set".into(),
+        "plant.kind=\"bench\"".into(),
+        "--set".into(),
+        "sim.duration_s=0.02".into(),
+    ]
+}
+
+fn args<'a>(head: &[&'a str], sets: &'a [String]) -> Vec<&'a str> {
+    head.iter().copied().chain(sets.iter().map(String::as_str)).collect()
+}
+
+/// A plugin calling a function nothing defines is refused when it loads, naming the symbol
+/// (exit 2, before any run: also in a sweep), not exit 127 at its first sample.
+#[test]
+fn a_plugin_with_an_unresolved_symbol_is_refused_at_load() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let lib = crate::common::build_plugin("tests/plugins/unresolved.c", "include");
+    let sets = plugin_sets(&lib, "");
+    let o = run_in(t, &args(&["run", "--out", "o"], &sets));
+    assert_bad("run", &o, &["controller.plugin.library", "exoleg_test_no_such_function"]);
+    let sc = scenario_path("paper_2hz_gamma100.toml");
+    let o = run_in(t, &args(&["sweep", &sc, "--grid", "seed=1,2,3,4", "--quiet", "--jobs", "2", "--out", "sw"], &sets));
+    assert_bad("sweep", &o, &["exoleg_test_no_such_function"]);
+    assert!(!t.join("o").exists() && !t.join("sw").exists());
+}
+
+/// A plugin that calls exit(0) in a run or at creation cannot make the run look finished:
+/// exit 3 with a message, no outputs; one that changes the working directory (when it loads,
+/// or at every sample) does not move the outputs of a relative `--out`.
+#[test]
+fn a_plugin_cannot_fake_a_finished_run_or_move_its_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let lib = crate::common::build_plugin("tests/plugins/rogue.c", "include");
+    for params in ["mode=1.0", "mode=2.0"] {
+        let sets = plugin_sets(&lib, params);
+        let o = run_in(t, &args(&["run", "--out", "o"], &sets));
+        assert_eq!(o.status.code(), Some(3), "{params}: {}", stderr(&o));
+        assert!(stderr(&o).contains("called exit()"), "{params}: {}", stderr(&o));
+        assert!(!t.join("o").exists(), "{params}");
+    }
+    let elsewhere = tempfile::tempdir().unwrap();
+    let sets = plugin_sets(&lib, "mode=3.0");
+    let o = Command::new(exe())
+        .args(args(&["run", "--out", "moved"], &sets))
+        .current_dir(t)
+        .env("EXOLEG_TEST_CHDIR", elsewhere.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(t.join("moved/summary.json").is_file() && t.join("moved/timeseries.csv").is_file());
+    assert_eq!(std::fs::read_dir(elsewhere.path()).unwrap().count(), 0);
+    assert!(!Path::new("/moved").exists());
+}
