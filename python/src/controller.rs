@@ -281,7 +281,9 @@ impl PyController {
                 if log.len() > MAX_LOGGED {
                     return Err(format!("it logs {} channels, at most {MAX_LOGGED}", log.len()));
                 }
-                self.log_names = Some(log.iter().map(|(k, _)| k.clone()).collect());
+                let names: Vec<String> = log.iter().map(|(k, _)| k.clone()).collect();
+                exoleg::record::check_log_names(&names).map_err(|m| format!("the returned dict's keys: {m}"))?;
+                self.log_names = Some(names);
             }
             Some(names) => {
                 if names.len() != log.len() || names.iter().zip(&log).any(|(n, (k, _))| n != k) {

@@ -145,6 +145,8 @@ impl Simulation {
         let names: Vec<String> = log.iter().map(|(k, _)| k.clone()).collect();
         match &self.log_names {
             None => {
+                exoleg::record::check_log_names(&names)
+                    .map_err(|m| crate::ControllerError::new_err(format!("step(): the command's keys: {m}")))?;
                 let st = self.started()?;
                 st.session.sim_mut().set_log_names(names.clone()).map_err(py_err)?;
                 self.log_names = Some(names);

@@ -290,6 +290,7 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
                 c.fail("controller.plugin.log", format!("at most {} names", crate::control::plugin::PLUGIN_LOG_LEN))
             );
         }
+        crate::record::check_log_names(&ct.plugin.log).map_err(|m| c.fail("controller.plugin.log", m))?;
     }
     c.non_negative("controller.resonator_hz", ct.resonator_hz)?;
     if ct.resonator_hz > 0.0 && ct.sample_period_s > 0.0 && ct.resonator_hz >= 0.5 / ct.sample_period_s {

@@ -273,3 +273,66 @@ fn a_plugin_cannot_fake_a_finished_run_or_move_its_outputs() {
     assert_eq!(std::fs::read_dir(elsewhere.path()).unwrap().count(), 0);
     assert!(!Path::new("/moved").exists());
 }
+
+/// A controller from Rust naming its channels (what the CSV header and the Parquet schema
+/// are made of).
+struct Named(Vec<String>);
+
+impl exoleg::control::DiscreteController for Named {
+    fn kind(&self) -> &str {
+        "named"
+    }
+    fn update(
+        &mut self,
+        _: &exoleg::control::SampleInput,
+    ) -> Result<exoleg::control::ControlOutput, exoleg::control::ControlStop> {
+        Ok(exoleg::control::ControlOutput::command(0.0))
+    }
+    fn log_names(&self) -> Vec<String> {
+        self.0.clone()
+    }
+}
+
+/// Logged channel names are names, whatever route they take: a plugin's
+/// (`controller.plugin.log`, the hostile corpus has the rest), a Rust controller's; refused with
+/// exit 2 before anything is written, naming the name. A plugin's message is printed with its
+/// control characters escaped.
+#[test]
+fn logged_channel_names_are_names_and_messages_are_one_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let lib = crate::common::build_plugin("tests/plugins/rogue.c", "include");
+    let mut sets = plugin_sets(&lib, "mode=4.0");
+    sets.extend(["--set".into(), "controller.plugin.log=[\"a,b\", \"c\"]".into()]);
+    let o = run_in(t, &args(&["run", "--out", "o"], &sets));
+    assert_bad("comma", &o, &["controller.plugin.log", "\"a,b\""]);
+    assert!(!t.join("o").exists());
+    // The warning's message, escaped, in summary.json.
+    let sets = plugin_sets(&lib, "mode=4.0");
+    let o = run_in(t, &args(&["run", "--out", "o"], &sets));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(t.join("o/summary.json")).unwrap()).unwrap();
+    let last = summary["controller_warnings"]["last"].as_str().unwrap();
+    assert!(!last.chars().any(char::is_control), "{last:?}");
+    assert!(last.contains("bad\\n\\u{1b}[2Jline"), "{last:?}");
+    // A Rust controller: the same rule, when the run starts.
+    for (names, needle) in [
+        (vec!["ok".to_string(), "ok".into()], "given twice"),
+        (vec!["x\"y".into()], "\"x\\\"y\""),
+        (vec![String::new()], "empty name"),
+        (vec!["two\nlines".into()], "\"two\\nlines\""),
+    ] {
+        let sc =
+            exoleg::load(None, &["plant.kind=\"bench\"", "sim.duration_s=0.01", "controller.sample_period_s=0.001"])
+                .unwrap();
+        let e = exoleg::study::RunBuilder::new(&sc)
+            .controller(Box::new(Named(names.clone())))
+            .write_to(&t.join("rust"))
+            .unwrap_err();
+        assert_eq!(e.exit_code(), 2, "{names:?}: {e}");
+        assert!(e.to_string().contains(needle), "{names:?}: {e}");
+        assert_eq!(e.to_string().lines().count(), 1);
+        assert!(!t.join("rust").exists());
+    }
+}
