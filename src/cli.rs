@@ -37,6 +37,11 @@ pub struct SweepArgs {
     /// Print the expanded runs as JSON lines (index, overrides) and exit without running.
     #[arg(long)]
     pub plan: bool,
+    /// Keep the runs an interrupted study of the same plan into the same DIR finished (kept in
+    /// DIR's journal, `.DIR.exoleg-partial`) and make only the missing ones; a journal of
+    /// another plan is refused. Without it, a new study starts.
+    #[arg(long)]
+    pub resume: bool,
 }
 
 /// Sub-commands.
@@ -353,6 +358,7 @@ fn run_study(
         shard: sh.unwrap_or((0, 1)),
         controller: None,
         cancel: None,
+        resume: common.resume,
     };
     let start = std::time::Instant::now();
     let done = shard::run_study_into(base, source_name, plan, &study, &opts, sh.is_some(), run_outputs, &out)?;

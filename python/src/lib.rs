@@ -222,7 +222,7 @@ fn controller_info(
 /// `controller`, every run is made with it, one run after the other in this process. Returns
 /// the title line and `aggregate.csv`'s text (or, with `plan_only`, the plan's JSON lines).
 #[pyfunction]
-#[pyo3(signature = (kind, out, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, jobs=0, shard_k_n=None, controller=None))]
+#[pyo3(signature = (kind, out, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, jobs=0, shard_k_n=None, controller=None, resume=false))]
 #[allow(clippy::too_many_arguments)]
 fn study(
     py: Python<'_>,
@@ -240,6 +240,7 @@ fn study(
     jobs: usize,
     shard_k_n: Option<(usize, usize)>,
     controller: Option<PyObject>,
+    resume: bool,
 ) -> PyResult<(String, String)> {
     let base = py.allow_threads(|| load(path, toml_text, scenario_json, overrides_json)).map_err(py_err)?;
     let (base_run, plan, study_kind) =
@@ -256,6 +257,7 @@ fn study(
         shard: shard_k_n.unwrap_or((0, 1)),
         controller: factory,
         cancel: Some(cancel.clone()),
+        resume,
     };
     let work = || {
         let done = shard::run_study_into(

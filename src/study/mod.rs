@@ -4,6 +4,7 @@
 pub mod compare;
 pub mod firmware;
 pub mod gait_test;
+pub mod journal;
 pub mod robustness;
 pub mod shard;
 mod single;

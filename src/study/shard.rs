@@ -257,7 +257,7 @@ fn open_runs(dir: &Path) -> Result<(PathBuf, std::fs::File)> {
 }
 
 /// The next line of `r` (without its newline), at most [`MAX_LINE_BYTES`]; None at the end.
-fn bounded_line(r: &mut impl BufRead, buf: &mut Vec<u8>) -> std::io::Result<Option<()>> {
+pub(super) fn bounded_line(r: &mut impl BufRead, buf: &mut Vec<u8>) -> std::io::Result<Option<()>> {
     buf.clear();
     let n = std::io::Read::take(&mut *r, MAX_LINE_BYTES as u64 + 1).read_until(b'\n', buf)?;
     if n == 0 {
@@ -273,7 +273,7 @@ fn bounded_line(r: &mut impl BufRead, buf: &mut Vec<u8>) -> std::io::Result<Opti
 
 /// Check one line of a shard against the plan: run `i`, its overrides, its fields exactly as
 /// exoleg writes them, plausible figures.
-fn check_line(text: &[u8], i: usize, plan: &Plan) -> std::result::Result<RunLine, String> {
+pub(super) fn check_line(text: &[u8], i: usize, plan: &Plan) -> std::result::Result<RunLine, String> {
     let text = std::str::from_utf8(text).map_err(|_| "not UTF-8".to_string())?;
     let line: RunLine = serde_json::from_str(text).map_err(|e| format!("not a run line: {e}"))?;
     if line.index != i {
@@ -393,7 +393,10 @@ pub struct StudyDone {
 
 /// Run a study's plan (all of it, or the shard in `opts.shard` when `sharded`) into the folder
 /// `out`, atomically: `runs.jsonl`, and `shard.json` for a shard or the study's other outputs
-/// (`aggregate.csv`, plots) for the whole plan. The CLI and the Python package both use it.
+/// (`aggregate.csv`, plots) for the whole plan. Every run's line is kept in the study's
+/// journal as the run finishes ([`super::journal`]); with `opts.resume`, the runs an
+/// interrupted study of the same plan finished are kept and only the others made. The CLI
+/// and the Python package both use it.
 #[allow(clippy::too_many_arguments)]
 pub fn run_study_into(
     base: &Scenario,
@@ -409,14 +412,24 @@ pub fn run_study_into(
     super::sweep::validate_plan(base, plan, &res, opts)?;
     let inputs = base.resolve(&res).map(|r| r.input_paths()).unwrap_or_else(|_| base.path.iter().cloned().collect());
     let dir = OutputDir::prepare_with_inputs(out, "--out", &inputs)?;
-    let path = dir.path().join("runs.jsonl");
-    let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
-    let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
-    let agg = super::sweep::run_plan(base, plan, &res, opts, run_outputs.then_some(dir.path()), &mut w)?;
-    w.flush().map_err(werr)?;
-    drop(w);
+    let (k, n) = opts.shard;
+    let meta = super::journal::JournalMeta {
+        format: super::journal::JOURNAL_FORMAT.into(),
+        study: study.clone(),
+        plan_hash: plan_hash(base, plan)?,
+        runs: plan.len(),
+        shard: [k, n],
+        run_outputs,
+        caller_controller: opts.controller.is_some(),
+    };
+    let journal = super::journal::Journal::open(dir.target(), meta, plan, opts.resume)?;
+    if journal.kept() > 0 {
+        eprintln!("resuming: {} finished runs kept from {}", journal.kept(), journal.dir().display());
+    }
+    let run_dir = run_outputs.then_some(journal.dir());
+    super::sweep::run_plan(base, plan, &res, opts, run_dir, &|i| journal.done(i), &|l| journal.append(l))?;
+    let agg = journal.assemble(plan, dir.path())?;
     let title = if sharded {
-        let (k, n) = opts.shard;
         let meta = ShardMeta {
             format: SHARD_FORMAT.into(),
             study: study.clone(),
@@ -433,5 +446,6 @@ pub fn run_study_into(
         write_study_outputs(dir.path(), study, &base.file, source_name, &agg)?
     };
     dir.commit()?;
+    journal.remove();
     Ok(StudyDone { title, aggregate: agg })
 }

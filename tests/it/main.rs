@@ -24,6 +24,7 @@ mod leg_urdf_errors;
 mod observer;
 mod output_safety;
 mod paper_tables;
+mod resume;
 mod sampled;
 mod shard;
 mod shipped_outputs;

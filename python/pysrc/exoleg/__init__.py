@@ -313,6 +313,7 @@ def sweep(
     jobs: int = 0,
     shard: Optional[Tuple[int, int]] = None,
     controller: Optional[Controller] = None,
+    resume: bool = False,
 ) -> Study:
     """Run many variations of a scenario in parallel, like ``exoleg sweep``.
 
@@ -322,6 +323,9 @@ def sweep(
     folder for :func:`merge`. ``jobs``: worker threads (0 = all cores). ``controller``: your
     Python controller for every run (as in :func:`run`); the runs then go one after the other
     in this process (``jobs`` is 1), and a run whose controller fails is a failed line.
+    Every run's line is kept as it finishes; ``resume=True`` keeps the runs an interrupted
+    study of the same plan into the same ``out`` finished and makes only the others (as the
+    CLI's ``--resume``).
     """
     title, agg = _native.study(
         "sweep",
@@ -332,6 +336,7 @@ def sweep(
         jobs=int(jobs),
         shard_k_n=_shard(shard),
         controller=controller,
+        resume=bool(resume),
     )
     return Study(title, agg, os.fspath(out))
 
@@ -346,10 +351,11 @@ def robustness(
     jobs: int = 0,
     shard: Optional[Tuple[int, int]] = None,
     controller: Optional[Controller] = None,
+    resume: bool = False,
 ) -> Study:
     """The robustness report, like ``exoleg robustness`` (the plant's parameters +-``percent``
     %, the controller keeping its nominal model, the paper's Table 2 disturbances).
-    ``controller``: as in :func:`sweep`."""
+    ``controller``, ``resume``: as in :func:`sweep`."""
     title, agg = _native.study(
         "robustness",
         os.fspath(out),
@@ -359,6 +365,7 @@ def robustness(
         jobs=int(jobs),
         shard_k_n=_shard(shard),
         controller=controller,
+        resume=bool(resume),
     )
     return Study(title, agg, os.fspath(out))
 
