@@ -279,7 +279,9 @@ fn warn(warnings: &[String]) {
 
 /// `exoleg run`.
 fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bool, animate: bool) -> Result<i32> {
-    let sc = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
+    let loaded = Scenario::load(scenario.as_deref(), &sets)?;
+    loaded.own_controller()?;
+    let sc = loaded.resolve(&Resources::new())?;
     warn(&sc.warnings);
     if animate && sc.model.leg().is_none() {
         return Err(Error::input(&sc.source_name, "--animate", "the animation draws the leg: plant.kind = \"leg\""));
@@ -331,6 +333,7 @@ fn cmd_sweep(
     common: SweepArgs,
 ) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.sets)?;
+    base.own_controller()?;
     warn_base(&base);
     let plan = sweep::plan_from_args(&base, &grids, monte_carlo, &vary)?;
     run_study(&base, &base.source_name, &plan, shard::StudyKind::Sweep, out, run_outputs, &common)
@@ -390,6 +393,7 @@ fn robustness_verdict(base: &crate::scenario::ScenarioFile, agg: &sweep::Aggrega
 /// `exoleg robustness`.
 fn cmd_robustness(scenario: PathBuf, percent: f64, samples: usize, out: PathBuf, common: SweepArgs) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.sets)?;
+    base.own_controller()?;
     warn_base(&base);
     let (pinned, plan) = robustness::robustness_plan(&base, samples, percent)?;
     run_study(&pinned, &base.source_name, &plan, shard::StudyKind::Robustness { percent }, out, false, &common)

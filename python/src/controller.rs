@@ -11,6 +11,7 @@ use exoleg::study::sweep::ControllerFactory;
 use exoleg::Error;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat, PyInt};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// The readings of one sample, by name (SI units; see the README's "Your controller"). One
@@ -224,7 +225,10 @@ pub fn read_command(v: &Bound<'_, PyAny>) -> Result<Command, String> {
     if let Ok(f) = v.downcast::<PyFloat>() {
         return Ok(Command { output: ControlOutput::command(f.value()), log: None });
     }
-    if v.is_instance_of::<PyInt>() || v.hasattr("__float__").unwrap_or(false) && !v.is_instance_of::<PyDict>() {
+    if v.is_instance_of::<PyInt>() {
+        return number(v, "the valve command").map(|x| Command { output: ControlOutput::command(x), log: None });
+    }
+    if v.hasattr("__float__").unwrap_or(false) && !v.is_instance_of::<PyDict>() {
         if let Ok(x) = v.extract::<f64>() {
             return Ok(Command { output: ControlOutput::command(x), log: None });
         }
@@ -240,7 +244,8 @@ pub fn read_command(v: &Bound<'_, PyAny>) -> Result<Command, String> {
     let mut log = Vec::new();
     for (k, x) in d.iter() {
         let key: String = k.extract().map_err(|_| "a key of the returned dict is not a string".to_string())?;
-        let val: f64 = x.extract().map_err(|_| format!("`{key}` in the returned dict is not a number"))?;
+        let shown: String = key.chars().take(80).flat_map(char::escape_default).collect();
+        let val = number(&x, &format!("`{shown}` in the returned dict"))?;
         if key == "valve_command" {
             u = Some(val);
         } else {
@@ -251,6 +256,19 @@ pub fn read_command(v: &Bound<'_, PyAny>) -> Result<Command, String> {
     Ok(Command { output: ControlOutput::command(u), log: Some(log) })
 }
 
+/// A returned number as a float; `what` names it. An integer too large for a float (10**400)
+/// is said to be one, not "not a number".
+fn number(x: &Bound<'_, PyAny>, what: &str) -> Result<f64, String> {
+    x.extract::<f64>().map_err(|_| {
+        if x.is_instance_of::<PyInt>() {
+            let digits = x.str().map_or(0, |s| s.len().unwrap_or(0));
+            format!("{what} is an integer of {digits} digits, too large for a float (at most about 1.8e308)")
+        } else {
+            format!("{what} is not a number")
+        }
+    })
+}
+
 /// A Python callable as a [`DiscreteController`]. A failure keeps the Python exception in
 /// `error` for the caller to raise.
 pub struct PyController {
@@ -259,15 +277,32 @@ pub struct PyController {
     error: Arc<Mutex<Option<PyErr>>>,
     log_names: Option<Vec<String>>,
     log: [f64; MAX_LOGGED],
+    /// In a study: what stops the whole study when the callback raises KeyboardInterrupt,
+    /// SystemExit or another BaseException that is no Exception (the study's cancel flag,
+    /// and where the exception is kept to be raised again).
+    stop_study: Option<StudyStop>,
+}
+
+/// A study's cancel flag and the BaseException that stopped it.
+#[derive(Clone)]
+pub struct StudyStop {
+    pub cancel: Arc<AtomicBool>,
+    pub raised: Arc<Mutex<Option<PyErr>>>,
 }
 
 impl PyController {
     /// A controller calling `callable`; failures go to `error`.
     pub fn new(py: Python<'_>, callable: PyObject, error: Arc<Mutex<Option<PyErr>>>) -> PyResult<Self> {
-        Ok(Self { callable, obs: Py::new(py, Obs::default())?, error, log_names: None, log: [0.0; MAX_LOGGED] })
+        let obs = Py::new(py, Obs::default())?;
+        Ok(Self { callable, obs, error, log_names: None, log: [0.0; MAX_LOGGED], stop_study: None })
     }
 
-    fn fail(&self, t: f64, e: PyErr) -> ControlStop {
+    fn fail(&self, py: Python<'_>, t: f64, e: PyErr) -> ControlStop {
+        if let Some(stop) = self.stop_study.as_ref().filter(|_| !e.is_instance_of::<pyo3::exceptions::PyException>(py))
+        {
+            *stop.raised.lock().unwrap_or_else(|p| p.into_inner()) = Some(e.clone_ref(py));
+            stop.cancel.store(true, Ordering::SeqCst);
+        }
         let msg = format!("the Python controller raised at t = {t:.6} s: {e}");
         *self.error.lock().unwrap_or_else(|p| p.into_inner()) = Some(e);
         ControlStop { message: msg }
@@ -309,13 +344,13 @@ impl DiscreteController for PyController {
     fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
         Python::with_gil(|py| {
             self.obs.borrow_mut(py).set(s);
-            let ret = self.callable.call1(py, (self.obs.clone_ref(py),)).map_err(|e| self.fail(s.t_s, e))?;
+            let ret = self.callable.call1(py, (self.obs.clone_ref(py),)).map_err(|e| self.fail(py, s.t_s, e))?;
             let cmd = read_command(ret.bind(py))
                 .and_then(|c| self.take_log(c.log).map(|_| c.output))
-                .map_err(|m| self.fail(s.t_s, ControllerError::new_err(m)))?;
+                .map_err(|m| self.fail(py, s.t_s, ControllerError::new_err(m)))?;
             if !cmd.valve_command.is_finite() {
                 let m = format!("it returned the valve command {}", cmd.valve_command);
-                return Err(self.fail(s.t_s, ControllerError::new_err(m)));
+                return Err(self.fail(py, s.t_s, ControllerError::new_err(m)));
             }
             Ok(cmd)
         })
@@ -389,13 +424,18 @@ pub const SIGNAL_CHECK_STEPS: usize = 1000;
 
 /// A controller factory for a study: every run calls `callable` (with the GIL, one run after
 /// the other). A failing callback fails its run, recorded in `runs.jsonl` with the message.
-pub fn factory(callable: PyObject) -> Arc<ControllerFactory> {
+/// A KeyboardInterrupt or SystemExit in the callback stops the whole study (`stop`), and is
+/// raised again by the caller.
+pub fn factory(callable: PyObject, stop: StudyStop) -> Arc<ControllerFactory> {
     let callable = Arc::new(callable);
     Arc::new(move |_sc: &ResolvedScenario| -> exoleg::Result<Box<dyn DiscreteController>> {
         Python::with_gil(|py| {
             let err = Arc::new(Mutex::new(None));
             PyController::new(py, (*callable).clone_ref(py), err)
-                .map(|c| Box::new(c) as Box<dyn DiscreteController>)
+                .map(|mut c| {
+                    c.stop_study = Some(stop.clone());
+                    Box::new(c) as Box<dyn DiscreteController>
+                })
                 .map_err(|e| Error::Usage(e.to_string()))
         })
     })

@@ -191,8 +191,13 @@ fn check_shards(dirs: &[PathBuf]) -> Result<Vec<(PathBuf, ShardMeta)>> {
     let first_dir = dirs.first().ok_or_else(|| Error::input("merge", "SHARDS", "give the shard folders"))?;
     let first = read_meta(first_dir)?;
     let n = first.shard[1];
-    let base =
-        Scenario { source_name: first.source_name.clone(), base_dir: None, path: None, file: first.scenario.clone() };
+    let base = Scenario {
+        source_name: first.source_name.clone(),
+        base_dir: None,
+        path: None,
+        file: first.scenario.clone(),
+        external_controller: None,
+    };
     if plan_hash(&base, &first.plan)? != first.plan_hash {
         return Err(Error::input(first_dir.display().to_string(), "plan_hash", "does not match its plan and scenario"));
     }

@@ -368,6 +368,9 @@ fn run_one(
     opts: &RunOptions,
     run_dir: Option<&Path>,
 ) -> Result<RunLine> {
+    if opts.cancel.as_ref().is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed)) {
+        return Err(Error::Interrupted);
+    }
     let sets = plan.sets(i);
     let sc = base.with_sets(&sets)?.resolve(res)?;
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate(&sc, i, opts, run_dir)))

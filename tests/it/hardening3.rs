@@ -336,3 +336,29 @@ fn logged_channel_names_are_names_and_messages_are_one_line() {
         assert!(!t.join("rust").exists());
     }
 }
+
+/// A failed run never looks like a good one when replayed: the summary.json of a run whose
+/// controller came from outside the scenario (Rust here; Python in the pytest suite) is
+/// refused by `exoleg run` (exit 2, naming the controller), while a plugin run's, whose
+/// scenario holds the plugin, replays the plugin (the same time series, byte for byte).
+#[test]
+fn a_summary_replays_only_the_controller_it_holds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let sc = exoleg::load(None, &["plant.kind=\"bench\"", "sim.duration_s=0.01", "controller.sample_period_s=0.001"])
+        .unwrap();
+    exoleg::study::RunBuilder::new(&sc)
+        .controller(Box::new(Named(vec!["fine".into()])))
+        .write_to(&t.join("r"))
+        .unwrap();
+    let o = run_in(t, &["run", "r/summary.json", "--out", "again"]);
+    assert_bad("replay", &o, &["external_controller", "`named`"]);
+    assert!(!t.join("again").exists());
+    let lib = crate::common::build_plugin("tests/plugins/rogue.c", "include");
+    let sets = plugin_sets(&lib, "mode=0.0");
+    assert!(run_in(t, &args(&["run", "--out", "p"], &sets)).status.success());
+    let o = run_in(t, &["run", "p/summary.json", "--out", "p2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = |d: &str| std::fs::read(t.join(d).join("timeseries.csv")).unwrap();
+    assert_eq!(csv("p"), csv("p2"));
+}
