@@ -300,11 +300,11 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bo
             s.knee_lower_s, s.knee_upper_s, s.stroke_end_s, s.ankle_s, s.max_penetration_deg
         );
     }
-    if let Some(c) = report.summary.contact.as_ref().filter(|c| !c.not_walking.is_empty()) {
+    if let Some(why) = report.summary.contact.as_ref().and_then(|c| c.not_walking.as_ref()).filter(|v| !v.is_empty()) {
         eprintln!(
             "warning: this run is not walking: {} (summary.json: not_walking; criteria.max_not_walking_flags = 0 \
              fails such a run)",
-            c.not_walking.join("; ")
+            why.join("; ")
         );
     }
     for (channel, n) in &report.summary.sensor_clipped_readings {

@@ -217,3 +217,9 @@ def test_a_huge_integer_from_a_callback_is_said_to_be_one():
         exoleg.run(None, SAMPLED, controller=lambda obs: 10**400)
     with pytest.raises(exoleg.ControllerError, match="too large for a float"):
         exoleg.run(None, SAMPLED, controller=lambda obs: {"valve_command": 0.0, "big": 10**400})
+
+
+def test_a_huge_value_is_not_echoed_whole():
+    with pytest.raises(exoleg.ScenarioError) as e:
+        exoleg.run(None, {"controller.kind": "x" * 100_000_000})
+    assert len(str(e.value)) < 10_000 and "bytes in all" in str(e.value)

@@ -192,6 +192,12 @@ fn body(s: &SubjectBody) -> ([Segment; 3], f64, f64, &'static Template) {
     ([thigh, shank, foot], ankle * leg_scale, k, template)
 }
 
+/// The built-in leg `[subject]` scales for `s` (`builtin:exo_leg` for a man,
+/// `builtin:exo_leg_small` for a woman).
+pub fn template_urdf(s: &SubjectBody) -> String {
+    format!("builtin:{}", body(s).3.name)
+}
+
 /// How every URDF [`scaled_urdf`] writes begins.
 const SCALED_URDF_HEAD: &str = "<?xml version=\"1.0\"?>\n<!-- exoleg: the built-in leg scaled to a ";
 

@@ -114,9 +114,10 @@ pub struct ContactSummary {
     /// lowest hip height, riding more than [`NOT_WALKING_PELVIS_RANGE_M`] fore-aft, or the belt
     /// dragging the leg (the mean horizontal ground reaction
     /// under [`NOT_WALKING_DRAG_RATIO`] of the vertical one). `criteria.max_not_walking_flags
-    /// = 0` fails such a run.
-    #[serde(default)]
-    pub not_walking: Vec<String>,
+    /// = 0` fails such a run. Absent where it is not evaluated (not loaded walking, or no
+    /// row after the run-in): no flag there means nothing, not "walking".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub not_walking: Option<Vec<String>>,
     /// The pelvic tilt the run assumed (loaded walking only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pelvic_tilt: Option<String>,
@@ -225,10 +226,10 @@ impl WalkingMetrics {
     }
 
     /// Why the run is not walking (loaded walking only; see [`ContactSummary::not_walking`]).
-    fn not_walking(&self, stance_fraction: f64) -> Vec<String> {
-        let (Some(data), Some(stride)) = (self.data.as_ref(), self.stride_s) else { return Vec::new() };
+    fn not_walking(&self, stance_fraction: f64) -> Option<Vec<String>> {
+        let (Some(data), Some(stride)) = (self.data.as_ref(), self.stride_s) else { return None };
         if self.rows_after == 0 {
-            return Vec::new();
+            return None;
         }
         let mut why = Vec::new();
         if stance_fraction > NOT_WALKING_STANCE_FRACTION {
@@ -282,7 +283,7 @@ impl WalkingMetrics {
                 100.0 * NOT_WALKING_DRAG_RATIO
             ));
         }
-        why
+        Some(why)
     }
 
     /// The figures.

@@ -101,6 +101,7 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     sensors_and_actuator(&c, f)?;
     leg_human_metrics(&c, f)?;
     subject(&c, f)?;
+    contradictions(&c, f)?;
     if !(1..=1_000_000_000).contains(&f.output.every_steps) {
         return Err(c.fail("output.every_steps", format!("must be 1..=1000000000, got {}", f.output.every_steps)));
     }
@@ -119,6 +120,46 @@ fn subject(c: &Check, f: &ScenarioFile) -> Result<()> {
         return Err(c.fail(
             "hip.subject_mass_kg",
             format!("{m} kg contradicts subject.mass_kg = {} kg: give the mass once", s.mass_kg),
+        ));
+    }
+    Ok(())
+}
+
+/// Keys another key makes meaningless, refused rather than silently ignored: a trial and a
+/// gait file; a built-in leg of the other sex than `[subject]`'s template; the ground's height
+/// on the carriage (there the ground is at z = 0 and the pelvis at the data's hip height above
+/// it: a height would only move the whole world).
+fn contradictions(c: &Check, f: &ScenarioFile) -> Result<()> {
+    let defaults = ScenarioFile::default();
+    if f.reference.gait_file.is_some() && f.reference.gait_trial != defaults.reference.gait_trial {
+        return Err(c.fail(
+            "reference.gait_trial",
+            format!(
+                "`{}` contradicts reference.gait_file (the file is the gait): give one of the two",
+                f.reference.gait_trial
+            ),
+        ));
+    }
+    if let Some(s) = &f.subject {
+        let template = crate::leg::subject::template_urdf(&s.body());
+        if f.leg.urdf.starts_with("builtin:") && f.leg.urdf != template && f.leg.urdf != defaults.leg.urdf {
+            return Err(c.fail(
+                "leg.urdf",
+                format!(
+                    "`{}` contradicts [subject]: it scales the built-in leg of the subject's sex ({template}); leave \
+                     leg.urdf out, or give your own URDF (then [subject] sets the mass only)",
+                    f.leg.urdf
+                ),
+            ));
+        }
+    }
+    let carriage = f.hip.mode == Some(crate::human::HipMode::Carriage)
+        || (f.hip.mode.is_none() && f.reference.kind == ReferenceKind::Pose);
+    if carriage && f.ground.height_m.is_some() {
+        return Err(c.fail(
+            "ground.height_m",
+            "on the carriage the ground is at z = 0 and the pelvis at the data's hip height above it: a height would \
+             only move the whole world; leave it out",
         ));
     }
     Ok(())
@@ -270,6 +311,16 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
                 format!(
                     "must be 0 (continuous) or a whole multiple of sim.dt_s = {}, got {}",
                     f.sim.dt_s, ct.sample_period_s
+                ),
+            ));
+        }
+        if ct.sample_period_s > f.sim.duration_s {
+            return Err(c.fail(
+                "controller.sample_period_s",
+                format!(
+                    "{} s is longer than the run (sim.duration_s = {} s): the controller would see one sample only",
+                    num(ct.sample_period_s),
+                    num(f.sim.duration_s)
                 ),
             ));
         }

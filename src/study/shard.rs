@@ -201,6 +201,7 @@ fn check_shards(dirs: &[PathBuf]) -> Result<Vec<(PathBuf, ShardMeta)>> {
     if plan_hash(&base, &first.plan)? != first.plan_hash {
         return Err(Error::input(first_dir.display().to_string(), "plan_hash", "does not match its plan and scenario"));
     }
+    check_study(first_dir, &first, &base)?;
     let mut seen: Vec<Option<usize>> = vec![None; n];
     let mut out = Vec::with_capacity(n);
     for (i, d) in dirs.iter().enumerate() {
@@ -239,6 +240,27 @@ fn check_shards(dirs: &[PathBuf]) -> Result<Vec<(PathBuf, ShardMeta)>> {
     }
     out.sort_by_key(|(_, m)| m.shard[0]);
     Ok(out)
+}
+
+/// The study a shard says it belongs to must be the one its plan is: a robustness report's
+/// plan is the report's for its percent, runs and scenario (the title and the plot say so).
+fn check_study(dir: &Path, meta: &ShardMeta, base: &Scenario) -> Result<()> {
+    let bad = |m: String| Error::input(dir.display().to_string(), "study", m);
+    if meta.source_name.chars().count() > 4096 || meta.source_name.chars().any(char::is_control) {
+        return Err(Error::input(dir.display().to_string(), "source_name", "not a scenario's name"));
+    }
+    match meta.study {
+        StudyKind::Sweep => Ok(()),
+        StudyKind::Robustness { percent } => {
+            let (_, plan) = robustness::robustness_plan(base, meta.runs, percent)
+                .map_err(|e| bad(format!("not a robustness report's ({e})")))?;
+            if plan == meta.plan {
+                Ok(())
+            } else {
+                Err(bad(format!("says robustness at {percent} %, but its plan is not that report's")))
+            }
+        }
+    }
 }
 
 /// What a merge produced.

@@ -302,3 +302,16 @@ fn fmu_without_library_is_a_usage_error() {
     assert!(err.contains("cargo build --release -p exoleg-fmu"), "{err}");
     assert!(!out.exists());
 }
+
+/// A gait FMU takes a stop time shorter than its scenario's `metrics.settle_s` (1.1 s on
+/// `gait_walk.toml`): an FMU has no summary for the settling window to shape.
+#[test]
+fn a_gait_fmu_takes_a_stop_time_shorter_than_its_settling_window() {
+    let u = pack("assets/scenarios/gait_walk.toml", &["controller.sample_period_s=0.001"]);
+    let (mut slave, _) = Slave::instantiate(&u.resources, &u.guid).unwrap();
+    slave.setup_experiment(0.0, Some(0.5)).unwrap();
+    slave.enter_initialization_mode().unwrap();
+    slave.exit_initialization_mode().unwrap();
+    slave.set(VarType::Real, &[1000], &[0.0]).unwrap();
+    slave.do_step(0.0, 0.001).unwrap();
+}

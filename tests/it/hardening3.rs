@@ -362,3 +362,38 @@ fn a_summary_replays_only_the_controller_it_holds() {
     let csv = |d: &str| std::fs::read(t.join(d).join("timeseries.csv")).unwrap();
     assert_eq!(csv("p"), csv("p2"));
 }
+
+/// The audit's smaller items: `not_walking` is absent where it is not evaluated; merge checks
+/// a shard's study against its plan; a sample period longer than the run is refused; a huge
+/// value is not echoed whole.
+#[test]
+fn smaller_items() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    // Standing on the carriage is not walking, nor evaluated as such: no `not_walking`.
+    let stand = scenario_path("stand.toml");
+    let o =
+        run_in(t, &["run", &stand, "--set", "sim.duration_s=2.2", "--set", "leg.engine=\"reduced\"", "--out", "st"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(t.join("st/summary.json")).unwrap()).unwrap();
+    assert!(s.get("not_walking").is_none(), "{}", s["not_walking"]);
+    // A robustness shard relabelled with another percent (its plan hash still matches).
+    let sc = scenario_path("paper_2hz_gamma100.toml");
+    let mut a = vec!["robustness", &sc, "--samples", "2", "--quiet", "--shard", "0/1", "--out", "r"];
+    a.extend(["--set", "plant.kind=\"bench\"", "--set", "sim.duration_s=0.01"]);
+    assert!(run_in(t, &a).status.success());
+    let meta = std::fs::read_to_string(t.join("r/shard.json")).unwrap();
+    let mut m: serde_json::Value = serde_json::from_str(&meta).unwrap();
+    m["study"]["percent"] = serde_json::json!(5.0);
+    std::fs::write(t.join("r/shard.json"), m.to_string()).unwrap();
+    assert_bad("relabelled", &run_in(t, &["merge", "r", "--out", "m"]), &["study", "robustness at 5 %"]);
+    // A sample period longer than the run.
+    let o = run_in(t, &["run", "--set", "controller.kind=\"dtznn\"", "--set", "controller.sample_period_s=2.0"]);
+    assert_bad("period", &o, &["controller.sample_period_s", "longer than the run"]);
+    // A 100 kB value in an error: clipped, on one line.
+    let big = format!("controller.kind=\"{}\"", "x".repeat(100_000));
+    let o = run_in(t, &["run", "--set", &big, "--out", "o"]);
+    assert_bad("big", &o, &["bytes in all"]);
+    assert!(stderr(&o).len() < 10_000, "{} bytes", stderr(&o).len());
+}
