@@ -28,6 +28,42 @@ use std::ffi::{c_char, c_void, CStr, CString};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// A plugin's message buffer as exoleg prints it: up to the first NUL (the last byte is one
+/// whatever the plugin wrote), invalid UTF-8 replaced, trimmed, control characters escaped.
+pub fn message_text(buf: &[c_char; MESSAGE_LEN]) -> String {
+    let mut m = *buf;
+    m[MESSAGE_LEN - 1] = 0;
+    // SAFETY: NUL-terminated within the buffer (forced above).
+    let text = escape_controls(unsafe { CStr::from_ptr(m.as_ptr()) }.to_string_lossy().trim());
+    if text.is_empty() {
+        "(no message)".into()
+    } else {
+        text
+    }
+}
+
+/// The fuzz target `plugin_abi`: what the host makes of the bytes a plugin hands back (its
+/// message buffer, and channel names for `controller.plugin.log`): the message is one line
+/// without control characters; accepted names make a CSV header with one column each.
+pub fn fuzz_plugin_abi(bytes: &[u8]) -> Result<(), String> {
+    let mut buf = [0 as c_char; MESSAGE_LEN];
+    for (b, x) in buf.iter_mut().zip(bytes) {
+        *b = *x as c_char;
+    }
+    let m = message_text(&buf);
+    if m.chars().any(char::is_control) {
+        return Err(format!("a control character in {m:?}"));
+    }
+    let names: Vec<String> = String::from_utf8_lossy(bytes).split('\u{1f}').take(32).map(String::from).collect();
+    crate::record::check_log_names(&names)?;
+    let header: Vec<String> = names.iter().map(|n| format!("log_{n}")).collect();
+    let line = header.join(",");
+    if line.split(',').count() != names.len() || line.contains(['"', '\n', '\r', ' ']) {
+        return Err(format!("accepted names make a bad header: {line:?}"));
+    }
+    Ok(())
+}
+
 /// The ABI's major version: a library reporting another major is refused.
 pub const ABI_MAJOR: u32 = 1;
 /// The ABI's minor version (additions at the end of the structs; sizes tell them apart): 1.1
@@ -552,15 +588,7 @@ unsafe impl Send for PluginController {}
 
 impl PluginController {
     fn message(&self) -> String {
-        let mut m = self.command.message;
-        m[MESSAGE_LEN - 1] = 0;
-        // SAFETY: NUL-terminated within the buffer (forced above).
-        let text = escape_controls(unsafe { CStr::from_ptr(m.as_ptr()) }.to_string_lossy().trim());
-        if text.is_empty() {
-            "(no message)".into()
-        } else {
-            text
-        }
+        message_text(&self.command.message)
     }
 
     fn fill(&mut self, s: &SampleInput) {

@@ -109,12 +109,24 @@ pub fn is_exoleg_fmu(f: &mut std::fs::File, len: u64) -> bool {
         return false;
     }
     let mut tail = Vec::new();
-    if f.take(tail_len).read_to_end(&mut tail).is_err() {
+    f.take(tail_len).read_to_end(&mut tail).is_ok() && has_fmu_comment(&tail)
+}
+
+/// True when the end of a zip (`tail`: its last bytes) has exoleg's FMU comment.
+pub fn has_fmu_comment(tail: &[u8]) -> bool {
+    if tail.len() < 22 {
         return false;
     }
     let Some(at) = (0..=tail.len() - 22).rev().find(|&i| tail[i..i + 4] == *b"PK\x05\x06") else { return false };
     let n = u16::from_le_bytes([tail[at + 20], tail[at + 21]]) as usize;
     tail.get(at + 22..at + 22 + n).is_some_and(|c| c == FMU_COMMENT.as_bytes())
+}
+
+/// The fuzz target `fmu_library`: the checks `exoleg fmu` makes of a library and of an
+/// existing `--out` file, on arbitrary bytes (never loaded, never a panic).
+pub fn fuzz_fmu_library(bytes: &[u8]) -> bool {
+    let lib = check_library(bytes).is_ok();
+    has_fmu_comment(bytes) || lib
 }
 
 /// What `exoleg fmu` wrote.

@@ -295,3 +295,21 @@ fn scan(p: &Path, lines: &mut Lines, plan: &Plan, [k, n]: [usize; 2]) -> Result<
     lines.len = at;
     Ok(kept)
 }
+
+/// The fuzz target `journal`: a journal's `runs.jsonl` as `--resume` reads it (arbitrary
+/// bytes, a plan of 8 grid runs), through the real reader on a temporary file. Returns the
+/// runs kept; an error is a refusal, never a panic.
+pub fn fuzz_journal(bytes: &[u8]) -> Result<usize> {
+    let plan = Plan::Grid(vec![("seed".into(), (1..=8).map(|i| i.to_string()).collect())]);
+    let dir = tempfile::tempdir().map_err(|e| werr(Path::new("."), e))?;
+    let p = dir.path().join(RUNS);
+    std::fs::write(&p, bytes).map_err(|e| werr(&p, e))?;
+    let file = std::fs::OpenOptions::new().append(true).read(true).open(&p).map_err(|e| werr(&p, e))?;
+    let mut lines = Lines { file, len: 0, at: vec![None; 4] };
+    // Shard 1 of 2: runs 1, 3, 5, 7.
+    let kept = scan(&p, &mut lines, &plan, [1, 2])?;
+    if lines.len > bytes.len() as u64 || lines.at.iter().flatten().count() != kept {
+        return Err(werr(&p, "the reader kept more than it read"));
+    }
+    Ok(kept)
+}
