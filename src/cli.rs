@@ -45,6 +45,11 @@ pub struct SweepArgs {
     /// Print the expanded runs as JSON lines (index, overrides) and exit without running.
     #[arg(long)]
     pub plan: bool,
+    /// Keep the runs an interrupted study of the same plan into the same DIR finished (kept in
+    /// DIR's journal, `.DIR.exoleg-partial`) and make only the missing ones; a journal of
+    /// another plan is refused. Without it, a new study starts.
+    #[arg(long)]
+    pub resume: bool,
 }
 
 /// Options of `gait-check`.
@@ -364,12 +369,17 @@ fn warn(warnings: &[String]) {
 
 /// `exoleg run`.
 fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bool, animate: bool) -> Result<i32> {
-    let sc = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
+    let loaded = Scenario::load(scenario.as_deref(), &sets)?;
+    loaded.own_controller()?;
+    let sc = loaded.resolve(&Resources::new())?;
     warn(&sc.warnings);
     if animate && sc.model.leg().is_none() {
         return Err(Error::input(&sc.source_name, "--animate", "the animation draws the leg: plant.kind = \"leg\""));
     }
     let report = study::RunBuilder::new(&sc).animate(animate).write_to(&out)?;
+    if !out.join("summary.json").is_file() {
+        return Err(Error::Write { path: out.clone(), message: "the run's summary.json is not there".into() });
+    }
     if !quiet {
         print_summary(&sc, &report.summary, &out);
     }
@@ -380,11 +390,11 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bo
             s.knee_lower_s, s.knee_upper_s, s.stroke_end_s, s.ankle_s, s.max_penetration_deg
         );
     }
-    if let Some(c) = report.summary.contact.as_ref().filter(|c| !c.not_walking.is_empty()) {
+    if let Some(why) = report.summary.contact.as_ref().and_then(|c| c.not_walking.as_ref()).filter(|v| !v.is_empty()) {
         eprintln!(
             "warning: this run is not walking: {} (summary.json: not_walking; criteria.max_not_walking_flags = 0 \
              fails such a run)",
-            c.not_walking.join("; ")
+            why.join("; ")
         );
     }
     for (channel, n) in &report.summary.sensor_clipped_readings {
@@ -413,6 +423,7 @@ fn cmd_sweep(
     common: SweepArgs,
 ) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.parallel.sets)?;
+    base.own_controller()?;
     warn_base(&base);
     let plan = sweep::plan_from_args(&base, &grids, monte_carlo, &vary)?;
     run_study(&base, &base.source_name, &plan, shard::StudyKind::Sweep, out, run_outputs, &common)
@@ -440,6 +451,7 @@ fn run_study(
         shard: sh.unwrap_or((0, 1)),
         controller: None,
         cancel: None,
+        resume: common.resume,
     };
     let start = std::time::Instant::now();
     let done = shard::run_study_into(base, source_name, plan, &study, &opts, sh.is_some(), run_outputs, &out)?;
@@ -491,6 +503,7 @@ fn cmd_faults(
     common: SweepArgs,
 ) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.parallel.sets)?;
+    base.own_controller()?;
     warn_base(&base);
     let matrix = matrix.as_deref().map(study::faults::read_matrix).transpose()?;
     let res = crate::scenario::Resources::new();
@@ -524,6 +537,7 @@ fn robustness_verdict(base: &crate::scenario::ScenarioFile, agg: &sweep::Aggrega
 /// `exoleg robustness`.
 fn cmd_robustness(scenario: PathBuf, percent: f64, samples: usize, out: PathBuf, common: SweepArgs) -> Result<i32> {
     let base = Scenario::load(Some(&scenario), &common.parallel.sets)?;
+    base.own_controller()?;
     warn_base(&base);
     let (pinned, plan) = robustness::robustness_plan(&base, samples, percent)?;
     run_study(&pinned, &base.source_name, &plan, shard::StudyKind::Robustness { percent }, out, false, &common)
@@ -554,17 +568,34 @@ fn cmd_compare(
     }
     all.extend(sets);
     let base = Scenario::load(scenario.as_deref(), &all)?;
+    let mut inputs = crate::fsio::own_executable();
+    inputs.extend(base.resolve(&Resources::new()).map(|r| r.input_paths()).unwrap_or_default());
+    inputs.extend(scenario);
+    if let Some(p) = &json {
+        crate::fsio::check_out(p, &compare::json_rule(&inputs))?;
+    }
     let results = compare::run_cases(&base, &[])?;
     println!("Paper cases on plant `{:?}` ({}):", base.file.plant.kind, base.source_name);
     print!("{}", compare::table(&results));
     if let Some(p) = json {
-        output::write_json(&p, &results)?;
+        write_report(&p, &results, &inputs)?;
     }
     Ok(EXIT_OK)
 }
 
+/// Write a `--json` report (pretty JSON) under [`compare::json_rule`].
+fn write_report(path: &Path, value: &impl serde::Serialize, inputs: &[PathBuf]) -> Result<()> {
+    let bytes = serde_json::to_vec_pretty(value)
+        .map_err(|e| Error::Write { path: path.to_path_buf(), message: e.to_string() })?;
+    crate::fsio::write_bytes(path, &compare::json_rule(inputs), &bytes).map(|_| ())
+}
+
 /// `exoleg compare --firmware`.
 fn cmd_firmware(json: Option<PathBuf>, sets: Vec<String>) -> Result<i32> {
+    let inputs = crate::fsio::own_executable();
+    if let Some(p) = &json {
+        crate::fsio::check_out(p, &compare::json_rule(&inputs))?;
+    }
     let rows = crate::study::firmware::run_table(&sets)?;
     println!(
         "Firmware conditions (1 kHz, zero-order hold, adc16, one sample of delay; bench cases at 0.1 ms steps).\n\
@@ -572,7 +603,7 @@ fn cmd_firmware(json: Option<PathBuf>, sets: Vec<String>) -> Result<i32> {
     );
     print!("{}", crate::study::firmware::table(&rows));
     if let Some(p) = json {
-        output::write_json(&p, &rows)?;
+        write_report(&p, &rows, &inputs)?;
     }
     Ok(EXIT_OK)
 }
@@ -592,7 +623,14 @@ fn cmd_urdf(mass_kg: f64, height_m: f64, leg_length_m: Option<f64>, sex: String,
     if out.as_os_str() == "-" {
         print!("{text}");
     } else {
-        output::write_atomic(&out, text.as_bytes())?;
+        let inputs = crate::fsio::own_executable();
+        let rule = crate::fsio::OutFile {
+            flag: "--out",
+            what: "a URDF exoleg urdf wrote",
+            inputs: &inputs,
+            ours: crate::leg::subject::is_scaled_urdf,
+        };
+        crate::fsio::write_bytes(&out, &rule, text.as_bytes())?;
         eprintln!("wrote {}", out.display());
     }
     Ok(EXIT_OK)
@@ -650,7 +688,9 @@ fn cmd_fmu(scenario: Option<PathBuf>, sets: Vec<String>, out: PathBuf, library: 
     let library = library.or_else(crate::fmu::default_library).ok_or_else(|| {
         Error::Usage("cannot locate the FMU library next to this executable: pass --library PATH".into())
     })?;
-    let r = crate::fmu::package(&resolved, &library, &out)?;
+    let mut inputs = crate::fsio::own_executable();
+    inputs.extend(scenario);
+    let r = crate::fmu::package(&resolved, &library, &out, &inputs)?;
     println!("wrote {} ({} bytes) from {}", out.display(), r.bytes, resolved.source_name);
     println!("GUID                {}", r.guid);
     println!(
@@ -673,14 +713,78 @@ pub fn remove_outputs_on_signals() {
     std::thread::spawn(move || {
         if let Some(sig) = signals.forever().next() {
             output::remove_active();
-            std::process::exit(128 + sig);
+            exit(128 + sig);
         }
     });
 }
 
-/// Execute a parsed command line. Returns the process exit code on success.
+/// `p` made absolute against the working directory now (nothing else changed: `out/.` stays
+/// `/abs/out/.`), so that nothing run later (a plugin that changes the working directory)
+/// moves what a command reads or writes.
+fn absolute(p: PathBuf) -> PathBuf {
+    if p.is_absolute() || p.as_os_str().is_empty() {
+        return p;
+    }
+    std::env::current_dir().map(|d| d.join(&p)).unwrap_or(p)
+}
+
+/// Every path of a command line made absolute before anything is loaded ([`absolute`]).
+fn absolute_paths(c: Command) -> Command {
+    let opt = |p: Option<PathBuf>| p.map(absolute);
+    match c {
+        Command::Run { scenario, out, sets, quiet, animate } => {
+            Command::Run { scenario: opt(scenario), out: absolute(out), sets, quiet, animate }
+        }
+        Command::Sweep { scenario, grids, monte_carlo, vary, out, run_outputs, common } => Command::Sweep {
+            scenario: absolute(scenario),
+            grids,
+            monte_carlo,
+            vary,
+            out: absolute(out),
+            run_outputs,
+            common,
+        },
+        Command::Robustness { scenario, percent, samples, out, common } => {
+            Command::Robustness { scenario: absolute(scenario), percent, samples, out: absolute(out), common }
+        }
+        Command::Merge { shards, out } => {
+            Command::Merge { shards: shards.into_iter().map(absolute).collect(), out: absolute(out) }
+        }
+        Command::Compare { scenario, plant, json, sets, firmware } => {
+            Command::Compare { scenario: opt(scenario), plant, json: opt(json), sets, firmware }
+        }
+        Command::Urdf { mass_kg, height_m, leg_length_m, sex, out } => {
+            let out = if out.as_os_str() == "-" { out } else { absolute(out) };
+            Command::Urdf { mass_kg, height_m, leg_length_m, sex, out }
+        }
+        Command::Fmu { scenario, sets, out, library } => {
+            Command::Fmu { scenario: opt(scenario), sets, out: absolute(out), library: opt(library) }
+        }
+        Command::Faults { scenario, matrix, print_matrix, observe_strides, out, common } => Command::Faults {
+            scenario: absolute(scenario),
+            matrix: opt(matrix),
+            print_matrix,
+            observe_strides,
+            out: absolute(out),
+            common,
+        },
+        Command::GaitCheck { dirs, out, mut run } => {
+            run.scenario = opt(run.scenario);
+            Command::GaitCheck { dirs: dirs.into_iter().map(absolute).collect(), out: absolute(out), run }
+        }
+    }
+}
+
+/// End the process with `code` (exoleg's own exit: the plugin exit guard stands aside).
+pub fn exit(code: i32) -> ! {
+    crate::control::plugin::exit_guard::exit(code)
+}
+
+/// Execute a parsed command line. Returns the process exit code on success. While it runs,
+/// an `exit()` from anything but exoleg (a plugin) ends the process with exit 3, never 0.
 pub fn run(cli: Cli) -> Result<i32> {
-    match cli.command {
+    let _armed = crate::control::plugin::exit_guard::arm();
+    match absolute_paths(cli.command) {
         Command::Run { scenario, out, sets, quiet, animate } => cmd_run(scenario, out, sets, quiet, animate),
         Command::Sweep { scenario, grids, monte_carlo, vary, out, run_outputs, common } => {
             cmd_sweep(scenario, grids, monte_carlo, vary, out, run_outputs, common)

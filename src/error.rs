@@ -28,7 +28,7 @@ pub enum Error {
         message: String,
     },
     /// A file could not be read.
-    #[error("{}: cannot read: {message}", path.display())]
+    #[error("{}: cannot read: {}", clip(&path.display().to_string()), clip(message))]
     Read {
         /// The path that failed.
         path: PathBuf,
@@ -65,7 +65,7 @@ pub enum Error {
     },
     /// The controller stopped the run (a plugin's stop status, a non-finite command, a
     /// callback that failed).
-    #[error("controller `{controller}` stopped the run at t = {time_s:.6} s: {message}")]
+    #[error("controller `{controller}` stopped the run at t = {time_s:.6} s: {}", clip(message))]
     ControllerStopped {
         /// Simulated time (s).
         time_s: f64,
@@ -78,10 +78,10 @@ pub enum Error {
     #[error("interrupted")]
     Interrupted,
     /// The library was used out of order (e.g. a step without the command for its sample).
-    #[error("{0}")]
+    #[error("{}", clip(.0))]
     Usage(String),
     /// Output could not be written.
-    #[error("{}: cannot write: {message}", path.display())]
+    #[error("{}: cannot write: {}", clip(&path.display().to_string()), clip(message))]
     Write {
         /// The path that failed.
         path: PathBuf,
@@ -123,7 +123,28 @@ impl Error {
 /// Result alias used across the crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// `a: b: c`, leaving out empty parts.
+/// `a: b: c`, leaving out empty parts, each [`clip`]ped.
 fn join_nonempty(parts: &[&String]) -> String {
-    parts.iter().filter(|p| !p.trim().is_empty()).map(|p| p.as_str()).collect::<Vec<_>>().join(": ")
+    parts.iter().filter(|p| !p.trim().is_empty()).map(|p| clip(p)).collect::<Vec<_>>().join(": ")
+}
+
+/// Longest part of a message echoed whole (characters); a value a user gave may be any size.
+pub const MAX_ECHO_CHARS: usize = 2000;
+
+/// A message part as printed: control characters escaped (one line, nothing that moves a
+/// terminal's cursor), and cut after [`MAX_ECHO_CHARS`] characters with the size said.
+pub fn clip(s: &str) -> String {
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i >= MAX_ECHO_CHARS {
+            out.push_str(&format!("... ({} bytes in all)", s.len()));
+            break;
+        }
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }

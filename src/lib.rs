@@ -9,7 +9,8 @@
 //! [`sim`] is the co-simulation loop ([`integrator`] its fixed-step schemes); [`session`] runs
 //! it with the online [`metrics`] and the caller's [`record`] sink ([`output`]: streamed CSV,
 //! JSON, plots); [`study`] builds single runs with any controller, comparisons, sweeps and the
-//! robustness report on top; [`fmu`] packs the plant as an FMI 2.0 co-simulation FMU (the
+//! robustness report on top; [`fsio`] is how every file is read (regular, capped) and
+//! written (new or exoleg's own, never a device, a link or an input); [`fmu`] packs the plant as an FMI 2.0 co-simulation FMU (the
 //! `fmu/` crate exports its C entry points); [`cli`] is the command line.
 //!
 //! Dependencies point one way, from the ground floor up (a module imports only from the
@@ -18,7 +19,7 @@
 //!
 //! ```text
 //! error, integrator
-//! record, hydraulics, sensors
+//! record, hydraulics, sensors, fsio
 //! disturbance, leg
 //! reference
 //! human, control, metrics
@@ -36,6 +37,7 @@ pub mod disturbance;
 pub mod error;
 pub mod faults;
 pub mod fmu;
+pub mod fsio;
 pub mod human;
 pub mod hydraulics;
 pub mod integrator;

@@ -11,15 +11,15 @@ fn main() {
             let text = e.render().to_string();
             let first = text.lines().next().unwrap_or("error: bad arguments").trim_end();
             eprintln!("{first} (see --help)");
-            std::process::exit(exoleg::error::EXIT_BAD_INPUT);
+            exoleg::cli::exit(exoleg::error::EXIT_BAD_INPUT);
         }
         Err(e) => e.exit(),
     };
     match exoleg::cli::run(cli) {
-        Ok(code) => std::process::exit(code),
+        Ok(code) => exoleg::cli::exit(code),
         Err(e) => {
             eprintln!("error: {e}");
-            std::process::exit(e.exit_code());
+            exoleg::cli::exit(e.exit_code());
         }
     }
 }

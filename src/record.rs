@@ -139,6 +139,36 @@ pub struct Row {
 /// Most channels a controller may log ([`Row::log`]).
 pub const MAX_LOGGED: usize = 16;
 
+/// Longest name of a logged channel (characters).
+pub const MAX_LOG_NAME: usize = 64;
+
+/// Check the names of a controller's logged channels (columns `log_<name>` of the CSV and
+/// Parquet files, keys in Python): at most [`MAX_LOGGED`], each 1 to [`MAX_LOG_NAME`]
+/// characters of ASCII letters, digits, `_`, `.` and `-` (no comma, quote, space, newline or
+/// control character that would break a CSV header or a Parquet schema), no two alike. The
+/// message names the offending name.
+pub fn check_log_names(names: &[String]) -> Result<(), String> {
+    if names.len() > MAX_LOGGED {
+        return Err(format!("{} channels, at most {MAX_LOGGED}", names.len()));
+    }
+    for (i, n) in names.iter().enumerate() {
+        let shown: String = n.chars().take(80).flat_map(char::escape_default).collect();
+        let ok = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '-');
+        if n.is_empty() {
+            return Err(format!("channel {i} has an empty name"));
+        }
+        if n.chars().count() > MAX_LOG_NAME || !n.chars().all(ok) {
+            return Err(format!(
+                "channel name \"{shown}\": use 1 to {MAX_LOG_NAME} ASCII letters, digits, `_`, `.` or `-`"
+            ));
+        }
+        if names[..i].contains(n) {
+            return Err(format!("channel name \"{shown}\" is given twice: each channel needs its own name"));
+        }
+    }
+    Ok(())
+}
+
 /// Which optional column groups a run records (fixed for the whole run).
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Layout {

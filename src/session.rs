@@ -6,7 +6,7 @@
 use crate::control::{ControlOutput, SampleInput};
 use crate::error::Result;
 use crate::metrics::{SafetyMetrics, SafetySetup, Summary, SummaryBuilder, WalkingMetrics, WearerMetrics};
-use crate::record::{Layout, MemoryRecord, RecordSink, Row, MAX_LOGGED};
+use crate::record::{Layout, MemoryRecord, RecordSink, Row};
 use crate::sim::{Model, Simulation};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -108,12 +108,8 @@ impl<S: RecordSink> Session<S> {
             return Ok(());
         }
         let layout = self.sim.layout();
-        if layout.log.len() > MAX_LOGGED {
-            return Err(crate::error::Error::Usage(format!(
-                "the controller logs {} channels, at most {MAX_LOGGED}",
-                layout.log.len()
-            )));
-        }
+        crate::record::check_log_names(&layout.log)
+            .map_err(|m| crate::error::Error::input("controller", "logged channels", m))?;
         Fan {
             metrics: &mut self.metrics,
             sink: &mut self.sink,

@@ -170,6 +170,16 @@ pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
     c"default".as_ptr()
 }
 
+/// What `exoleg fmu` looks for in a library before it packs it (by reading the file, never
+/// loading it): this crate's marker with exoleg's version. Exported so the linker keeps it.
+static LIBRARY_MARKER: &str = concat!("exoleg-fmu-library/", env!("CARGO_PKG_VERSION"), "/fmi2-cs\0");
+
+/// The library's identity (`exoleg-fmu-library/<version>/fmi2-cs`), NUL-terminated.
+#[no_mangle]
+pub extern "C" fn exoleg_fmu_library_id() -> *const c_char {
+    LIBRARY_MARKER.as_ptr().cast()
+}
+
 #[no_mangle]
 pub extern "C" fn fmi2GetVersion() -> *const c_char {
     c"2.0".as_ptr()

@@ -10,6 +10,7 @@ use exoleg::sim::{ControllerSource, Simulation};
 use exoleg::study::sweep::ControllerFactory;
 use exoleg::Error;
 use pyo3::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// A Python callable as a [`DiscreteController`]. A failure keeps the Python exception in
@@ -20,15 +21,32 @@ pub struct PyController {
     error: Arc<Mutex<Option<PyErr>>>,
     log_names: Option<Vec<String>>,
     log: [f64; MAX_LOGGED],
+    /// In a study: what stops the whole study when the callback raises KeyboardInterrupt,
+    /// SystemExit or another BaseException that is no Exception (the study's cancel flag,
+    /// and where the exception is kept to be raised again).
+    stop_study: Option<StudyStop>,
+}
+
+/// A study's cancel flag and the BaseException that stopped it.
+#[derive(Clone)]
+pub struct StudyStop {
+    pub cancel: Arc<AtomicBool>,
+    pub raised: Arc<Mutex<Option<PyErr>>>,
 }
 
 impl PyController {
     /// A controller calling `callable`; failures go to `error`.
     pub fn new(py: Python<'_>, callable: PyObject, error: Arc<Mutex<Option<PyErr>>>) -> PyResult<Self> {
-        Ok(Self { callable, obs: Py::new(py, Obs::default())?, error, log_names: None, log: [0.0; MAX_LOGGED] })
+        let obs = Py::new(py, Obs::default())?;
+        Ok(Self { callable, obs, error, log_names: None, log: [0.0; MAX_LOGGED], stop_study: None })
     }
 
-    fn fail(&self, t: f64, e: PyErr) -> ControlStop {
+    fn fail(&self, py: Python<'_>, t: f64, e: PyErr) -> ControlStop {
+        if let Some(stop) = self.stop_study.as_ref().filter(|_| !e.is_instance_of::<pyo3::exceptions::PyException>(py))
+        {
+            *stop.raised.lock().unwrap_or_else(|p| p.into_inner()) = Some(e.clone_ref(py));
+            stop.cancel.store(true, Ordering::SeqCst);
+        }
         let msg = format!("the Python controller raised at t = {t:.6} s: {e}");
         *self.error.lock().unwrap_or_else(|p| p.into_inner()) = Some(e);
         ControlStop { message: msg }
@@ -42,7 +60,9 @@ impl PyController {
                 if log.len() > MAX_LOGGED {
                     return Err(format!("it logs {} channels, at most {MAX_LOGGED}", log.len()));
                 }
-                self.log_names = Some(log.iter().map(|(k, _)| k.clone()).collect());
+                let names: Vec<String> = log.iter().map(|(k, _)| k.clone()).collect();
+                exoleg::record::check_log_names(&names).map_err(|m| format!("the returned dict's keys: {m}"))?;
+                self.log_names = Some(names);
             }
             Some(names) => {
                 if names.len() != log.len() || names.iter().zip(&log).any(|(n, (k, _))| n != k) {
@@ -68,13 +88,13 @@ impl DiscreteController for PyController {
     fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
         Python::with_gil(|py| {
             self.obs.borrow_mut(py).set(s);
-            let ret = self.callable.call1(py, (self.obs.clone_ref(py),)).map_err(|e| self.fail(s.t_s, e))?;
+            let ret = self.callable.call1(py, (self.obs.clone_ref(py),)).map_err(|e| self.fail(py, s.t_s, e))?;
             let cmd = read_command(ret.bind(py))
                 .and_then(|c| self.take_log(c.log).map(|_| c.output))
-                .map_err(|m| self.fail(s.t_s, ControllerError::new_err(m)))?;
+                .map_err(|m| self.fail(py, s.t_s, ControllerError::new_err(m)))?;
             if !cmd.valve_command.is_finite() {
                 let m = format!("it returned the valve command {}", cmd.valve_command);
-                return Err(self.fail(s.t_s, ControllerError::new_err(m)));
+                return Err(self.fail(py, s.t_s, ControllerError::new_err(m)));
             }
             Ok(cmd)
         })
@@ -148,13 +168,18 @@ pub const SIGNAL_CHECK_STEPS: usize = 1000;
 
 /// A controller factory for a study: every run calls `callable` (with the GIL, one run after
 /// the other). A failing callback fails its run, recorded in `runs.jsonl` with the message.
-pub fn factory(callable: PyObject) -> Arc<ControllerFactory> {
+/// A KeyboardInterrupt or SystemExit in the callback stops the whole study (`stop`), and is
+/// raised again by the caller.
+pub fn factory(callable: PyObject, stop: StudyStop) -> Arc<ControllerFactory> {
     let callable = Arc::new(callable);
     Arc::new(move |_sc: &ResolvedScenario| -> exoleg::Result<Box<dyn DiscreteController>> {
         Python::with_gil(|py| {
             let err = Arc::new(Mutex::new(None));
             PyController::new(py, (*callable).clone_ref(py), err)
-                .map(|c| Box::new(c) as Box<dyn DiscreteController>)
+                .map(|mut c| {
+                    c.stop_study = Some(stop.clone());
+                    Box::new(c) as Box<dyn DiscreteController>
+                })
                 .map_err(|e| Error::Usage(e.to_string()))
         })
     })

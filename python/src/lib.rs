@@ -189,8 +189,15 @@ fn run<'py>(
     controller: Option<PyObject>,
     out: Option<String>,
 ) -> PyResult<RunOut<'py>> {
+    let own = controller.is_none();
     let sc = py
-        .allow_threads(|| load(path, toml_text, scenario_json, overrides_json)?.resolve(&Resources::new()))
+        .allow_threads(|| {
+            let s = load(path, toml_text, scenario_json, overrides_json)?;
+            if own {
+                s.own_controller()?;
+            }
+            s.resolve(&Resources::new())
+        })
         .map_err(py_err)?;
     let scenario_toml = toml::to_string(&sc.file).map_err(|e| ExoError::new_err(e.to_string()))?;
     let (summary, cols) = match controller {
@@ -223,7 +230,7 @@ fn controller_info(
 /// `controller`, every run is made with it, one run after the other in this process. Returns
 /// the title line and `aggregate.csv`'s text (or, with `plan_only`, the plan's JSON lines).
 #[pyfunction]
-#[pyo3(signature = (kind, out, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, jobs=0, shard_k_n=None, controller=None))]
+#[pyo3(signature = (kind, out, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, jobs=0, shard_k_n=None, controller=None, resume=false))]
 #[allow(clippy::too_many_arguments)]
 fn study(
     py: Python<'_>,
@@ -241,15 +248,20 @@ fn study(
     jobs: usize,
     shard_k_n: Option<(usize, usize)>,
     controller: Option<PyObject>,
+    resume: bool,
 ) -> PyResult<(String, String)> {
     let base = py.allow_threads(|| load(path, toml_text, scenario_json, overrides_json)).map_err(py_err)?;
+    if controller.is_none() {
+        base.own_controller().map_err(py_err)?;
+    }
     let (base_run, plan, study_kind) =
         study_plan(&kind, &base, &grids, monte_carlo, &vary, percent, samples).map_err(py_err)?;
     if let Some((k, n)) = shard_k_n {
         shard::parse_shard(&format!("{k}/{n}")).map_err(py_err)?;
     }
     let cancel = Arc::new(AtomicBool::new(false));
-    let factory = controller.map(|c| controller::factory(c));
+    let stop = controller::StudyStop { cancel: cancel.clone(), raised: Arc::new(std::sync::Mutex::new(None)) };
+    let factory = controller.map(|c| controller::factory(c, stop.clone()));
     let opts = sweep::RunOptions {
         // A Python controller runs in this process, one run after the other.
         jobs: if factory.is_some() { 1 } else { jobs },
@@ -257,6 +269,7 @@ fn study(
         shard: shard_k_n.unwrap_or((0, 1)),
         controller: factory,
         cancel: Some(cancel.clone()),
+        resume,
     };
     let work = || {
         let done = shard::run_study_into(
@@ -271,7 +284,13 @@ fn study(
         )?;
         Ok((done.title, done.aggregate.csv()))
     };
-    interruptible(py, &cancel, work)
+    let r = interruptible(py, &cancel, work);
+    // A KeyboardInterrupt or SystemExit from the callback stopped the study: raise it.
+    let raised = stop.raised.lock().unwrap_or_else(|p| p.into_inner()).take();
+    match raised {
+        Some(e) if r.is_err() => Err(e),
+        _ => r,
+    }
 }
 
 /// The plan of a sweep or robustness study, and the scenario its runs start from.

@@ -219,7 +219,10 @@ pub fn read_command(v: &Bound<'_, PyAny>) -> Result<Command, String> {
     if let Ok(f) = v.downcast::<PyFloat>() {
         return Ok(Command { output: ControlOutput::command(f.value()), log: None });
     }
-    if v.is_instance_of::<PyInt>() || v.hasattr("__float__").unwrap_or(false) && !v.is_instance_of::<PyDict>() {
+    if v.is_instance_of::<PyInt>() {
+        return number(v, "the valve command").map(|x| Command { output: ControlOutput::command(x), log: None });
+    }
+    if v.hasattr("__float__").unwrap_or(false) && !v.is_instance_of::<PyDict>() {
         if let Ok(x) = v.extract::<f64>() {
             return Ok(Command { output: ControlOutput::command(x), log: None });
         }
@@ -235,7 +238,8 @@ pub fn read_command(v: &Bound<'_, PyAny>) -> Result<Command, String> {
     let mut log = Vec::new();
     for (k, x) in d.iter() {
         let key: String = k.extract().map_err(|_| "a key of the returned dict is not a string".to_string())?;
-        let val: f64 = x.extract().map_err(|_| format!("`{key}` in the returned dict is not a number"))?;
+        let shown: String = key.chars().take(80).flat_map(char::escape_default).collect();
+        let val = number(&x, &format!("`{shown}` in the returned dict"))?;
         if key == "valve_command" {
             u = Some(val);
         } else {
@@ -244,4 +248,17 @@ pub fn read_command(v: &Bound<'_, PyAny>) -> Result<Command, String> {
     }
     let u = u.ok_or("the returned dict has no `valve_command`")?;
     Ok(Command { output: ControlOutput::command(u), log: Some(log) })
+}
+
+/// A returned number as a float; `what` names it. An integer too large for a float (10**400)
+/// is said to be one, not "not a number".
+fn number(x: &Bound<'_, PyAny>, what: &str) -> Result<f64, String> {
+    x.extract::<f64>().map_err(|_| {
+        if x.is_instance_of::<PyInt>() {
+            let digits = x.str().map_or(0, |s| s.len().unwrap_or(0));
+            format!("{what} is an integer of {digits} digits, too large for a float (at most about 1.8e308)")
+        } else {
+            format!("{what} is not a number")
+        }
+    })
 }

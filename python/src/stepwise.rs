@@ -36,16 +36,27 @@ impl RecordSink for PySinks {
 struct Started {
     session: Session<PySinks>,
     dir: Option<OutputDir>,
+    /// The controller from outside the scenario (`summary.json`'s `external_controller`).
+    external: Option<String>,
 }
 
 /// Start a session of `sim` into columns and (with `out`) an output folder being written.
-fn start(sc: &ResolvedScenario, sim: CoreSimulation, out: Option<&str>) -> Result<Started, Error> {
-    let dir = out.map(|o| OutputDir::prepare(std::path::Path::new(o), "out")).transpose()?;
+fn start(
+    sc: &ResolvedScenario,
+    sim: CoreSimulation,
+    out: Option<&str>,
+    external: Option<String>,
+) -> Result<Started, Error> {
+    let dir =
+        out.map(|o| OutputDir::prepare_with_inputs(std::path::Path::new(o), "out", &sc.input_paths())).transpose()?;
     let every = sc.file.output.every_steps;
-    let files = dir.as_ref().map(|d| RunFiles::create(d.path(), &sc.file.output)).transpose()?;
+    let files = dir
+        .as_ref()
+        .map(|d| RunFiles::create(d.path(), &sc.file.output).map(|f| f.external(external.clone())))
+        .transpose()?;
     let cols = exoleg::record::EveryNth::new(ColumnSink::with_capacity(sc.model.steps / every.max(1) + 1), every);
     let sinks = PySinks { cols, files };
-    Ok(Started { session: Session::new(sim, sinks)?, dir })
+    Ok(Started { session: Session::new(sim, sinks)?, dir, external })
 }
 
 /// Finish a session: the summary as `summary.json` holds it, and the files committed.
@@ -56,9 +67,9 @@ fn finish(sc: &ResolvedScenario, st: Started) -> Result<(String, ColumnSink), Er
         (Some(files), Some(dir)) => {
             let report = files.finish(sc, &exoleg::study::run_title(sc), f.summary, f.design.clone())?;
             dir.commit()?;
-            summary_json(sc, &report.summary, f.design)?
+            summary_json(sc, &report.summary, f.design, st.external)?
         }
-        _ => summary_json(sc, &f.summary, f.design)?,
+        _ => summary_json(sc, &f.summary, f.design, st.external)?,
     };
     Ok((summary_json, sinks.cols.into_inner()))
 }
@@ -67,14 +78,16 @@ fn summary_json(
     sc: &ResolvedScenario,
     summary: &exoleg::metrics::Summary,
     design: Option<serde_json::Value>,
+    external: Option<String>,
 ) -> Result<String, Error> {
     let criteria = exoleg::metrics::check_criteria(&sc.file.criteria, summary);
-    serde_json::to_string(&SummaryFile::new(sc, summary, &criteria, design))
+    serde_json::to_string(&SummaryFile::new(sc, summary, &criteria, design).external(external))
         .map_err(|e| Error::Write { path: "summary.json".into(), message: e.to_string() })
 }
 
-/// Run `sim` through `drive` (the caller's loop), then finish: (summary JSON, columns). With
-/// `out`, the files are written and committed only when everything succeeded.
+/// Run `sim` (whose controller is the Python callable) through `drive`, then finish:
+/// (summary JSON, columns). With `out`, the files are written and committed only when
+/// everything succeeded.
 pub fn drive(
     _py: Python<'_>,
     sc: &ResolvedScenario,
@@ -82,7 +95,7 @@ pub fn drive(
     out: Option<&str>,
     body: impl FnOnce(&mut Session<PySinks>) -> Result<(), Error>,
 ) -> Result<(String, ColumnSink), Error> {
-    let mut st = start(sc, sim, out)?;
+    let mut st = start(sc, sim, out, Some("python".into()))?;
     body(&mut st.session)?;
     finish(sc, st)
 }
@@ -93,7 +106,7 @@ pub fn run_model(
     out: Option<&str>,
     cancel: Option<Arc<AtomicBool>>,
 ) -> Result<(String, ColumnSink), Error> {
-    let mut st = start(sc, CoreSimulation::new(sc.model.clone())?, out)?;
+    let mut st = start(sc, CoreSimulation::new(sc.model.clone())?, out, None)?;
     st.session.set_cancel(cancel);
     st.session.run_to_end()?;
     finish(sc, st)
@@ -116,36 +129,60 @@ pub fn info_json(m: &Model) -> serde_json::Value {
 /// A run whose loop the caller owns: `reset(seed)` reads the first sample, `step(command)`
 /// holds the command for one sample period and reads the next, `finish()` records the end
 /// and returns (and, with `out`, writes) what `exoleg.run` gives.
-#[pyclass(module = "exoleg._native", unsendable)]
+///
+/// A failure (the run diverged, a non-finite command, a bad command) ends the run where it
+/// happened: `step()` raises, the output folder being written is removed, every later
+/// `step()` and `finish()` raise saying so (nothing is written), `reset()` starts again.
+/// Any thread may use it (the GIL serialises the calls) or drop it (the temporary output
+/// folder goes with it).
+#[pyclass(module = "exoleg._native")]
 pub struct Simulation {
     sc: ResolvedScenario,
+    /// The scenario's own seed (`reset()` without one goes back to it).
+    seed: u64,
     out: Option<String>,
     run: Option<Started>,
     obs: Py<Obs>,
     last: Option<SampleInput>,
     log_names: Option<Vec<String>>,
+    /// Why the run stopped, and when (s).
+    failed: Option<(PyErr, f64)>,
 }
 
 impl Simulation {
-    fn started(&mut self) -> PyResult<&mut Started> {
+    fn started(&mut self, py: Python<'_>) -> PyResult<&mut Started> {
+        if let Some((e, t)) = &self.failed {
+            let msg = format!("the run failed at t = {t:.6} s ({}): reset() starts a new one", e.value_bound(py));
+            return Err(PyErr::from_type_bound(e.get_type_bound(py), msg));
+        }
         self.run.as_mut().ok_or_else(|| ExoError::new_err("finished: call reset() to start again"))
+    }
+
+    /// The run fails with `e`: it stops here, its output folder is removed.
+    fn fail(&mut self, py: Python<'_>, e: PyErr) -> PyErr {
+        let t = self.run.as_ref().map_or(0.0, |r| r.session.sim().t_s());
+        self.run = None;
+        self.failed = Some((e.clone_ref(py), t));
+        e
     }
 
     /// Step 1 at the next sample instant (the run is there), into the reused obs.
     fn read(&mut self, py: Python<'_>) -> PyResult<Py<Obs>> {
-        let st = self.started()?;
+        let st = self.started(py)?;
         let s = st.session.sample().map_err(py_err)?;
         self.obs.borrow_mut(py).set(&s);
         self.last = Some(s);
         Ok(self.obs.clone_ref(py))
     }
 
-    fn log_values(&mut self, log: Option<Vec<(String, f64)>>) -> PyResult<Vec<f64>> {
+    fn log_values(&mut self, py: Python<'_>, log: Option<Vec<(String, f64)>>) -> PyResult<Vec<f64>> {
         let log = log.unwrap_or_default();
         let names: Vec<String> = log.iter().map(|(k, _)| k.clone()).collect();
         match &self.log_names {
             None => {
-                let st = self.started()?;
+                exoleg::record::check_log_names(&names)
+                    .map_err(|m| crate::ControllerError::new_err(format!("step(): the command's keys: {m}")))?;
+                let st = self.started(py)?;
                 st.session.sim_mut().set_log_names(names.clone()).map_err(py_err)?;
                 self.log_names = Some(names);
             }
@@ -181,13 +218,17 @@ impl Simulation {
                 sc.source_name
             )));
         }
-        let mut s = Self { sc, out, run: None, obs: Py::new(py, Obs::default())?, last: None, log_names: None };
+        // Absolute now: nothing the run loads later moves the outputs.
+        let out = out.map(|o| std::path::absolute(&o).map_or(o, |p| p.display().to_string()));
+        let seed = sc.model.seed;
+        let obs = Py::new(py, Obs::default())?;
+        let mut s = Self { sc, seed, out, run: None, obs, last: None, log_names: None, failed: None };
         s.reset(py, None)?;
         Ok(s)
     }
 
-    /// Start (again) from t = 0, with `seed` in place of the scenario's; returns the readings of
-    /// the first sample.
+    /// Start (again) from t = 0, with `seed` in place of the scenario's (without one, the
+    /// scenario's own); returns the readings of the first sample.
     #[pyo3(signature = (seed=None))]
     fn reset(&mut self, py: Python<'_>, seed: Option<u64>) -> PyResult<Py<Obs>> {
         crate::guard(|| self.reset_inner(py, seed))
@@ -199,16 +240,20 @@ impl Simulation {
     fn step(&mut self, py: Python<'_>, command: &Bound<'_, PyAny>) -> PyResult<Py<Obs>> {
         crate::guard(|| self.step_inner(py, command))
     }
-    /// True when the run has taken all its steps.
+    /// True when the run has taken all its steps (or failed).
     #[getter]
     fn done(&self) -> bool {
         self.run.as_ref().is_none_or(|r| r.session.sim().done())
     }
 
-    /// Simulated time (s) of the next step.
+    /// Simulated time (s) of the next step (of the failure, after one).
     #[getter]
     fn t_s(&self) -> f64 {
-        self.run.as_ref().map_or(0.0, |r| r.session.sim().t_s())
+        match (&self.run, &self.failed) {
+            (Some(r), _) => r.session.sim().t_s(),
+            (None, Some((_, t))) => *t,
+            _ => 0.0,
+        }
     }
 
     /// The readings of the last sample.
@@ -230,8 +275,10 @@ impl Simulation {
     }
 
     /// Record the final state (or the state now, if the run stops early) and return
-    /// (summary JSON, columns, scenario TOML); with `out`, the files are written.
+    /// (summary JSON, columns, scenario TOML); with `out`, the files are written. After a
+    /// failure it raises (nothing is written).
     fn finish<'py>(&mut self, py: Python<'py>) -> PyResult<crate::RunOut<'py>> {
+        self.started(py)?;
         let st = self.run.take().ok_or_else(|| ExoError::new_err("already finished: call reset() to start again"))?;
         let (summary, cols) = finish(&self.sc, st).map_err(py_err)?;
         let toml = toml::to_string(&self.sc.file).map_err(|e| ExoError::new_err(e.to_string()))?;
@@ -242,34 +289,51 @@ impl Simulation {
 impl Simulation {
     fn reset_inner(&mut self, py: Python<'_>, seed: Option<u64>) -> PyResult<Py<Obs>> {
         self.run = None;
+        self.failed = None;
         self.log_names = None;
-        if let Some(seed) = seed {
+        let seed = seed.unwrap_or(self.seed);
+        if seed != self.sc.model.seed {
             let mut m: Model = (*self.sc.model).clone();
             m.seed = seed;
             self.sc.model = Arc::new(m);
             self.sc.file.seed = seed;
         }
         let sim = CoreSimulation::build(self.sc.model.clone(), ControllerSource::External).map_err(py_err)?;
-        self.run = Some(start(&self.sc, sim, self.out.as_deref()).map_err(py_err)?);
+        let external = Some("external loop (exoleg.Simulation)".to_string());
+        self.run = Some(start(&self.sc, sim, self.out.as_deref(), external).map_err(py_err)?);
         self.read(py)
     }
 
     fn step_inner(&mut self, py: Python<'_>, command: &Bound<'_, PyAny>) -> PyResult<Py<Obs>> {
+        self.started(py)?;
         let cmd = read_command(command).map_err(crate::ControllerError::new_err)?;
-        let log = self.log_values(cmd.log)?;
-        let st = self.started()?;
+        if !cmd.output.valve_command.is_finite() {
+            let e = crate::ControllerError::new_err(format!(
+                "step(): the valve command is {}: the run stops here (finish() writes nothing; reset() starts again)",
+                cmd.output.valve_command
+            ));
+            return Err(self.fail(py, e));
+        }
+        let log = self.log_values(py, cmd.log)?;
+        let st = self.started(py)?;
         if st.session.sim().done() {
             return Err(ExoError::new_err("the run is done: call finish() (or reset())"));
         }
         st.session.sim_mut().set_log(&log);
-        st.session.hold(cmd.output).map_err(py_err)?;
-        st.session.advance().map_err(py_err)?;
-        while !st.session.sim().done() && !st.session.sim().is_sample_step() {
-            st.session.advance().map_err(py_err)?;
+        let advanced = (|| -> Result<(), Error> {
+            st.session.hold(cmd.output)?;
+            st.session.advance()?;
+            while !st.session.sim().done() && !st.session.sim().is_sample_step() {
+                st.session.advance()?;
+            }
+            Ok(())
+        })();
+        if let Err(e) = advanced {
+            return Err(self.fail(py, py_err(e)));
         }
-        if st.session.sim().done() {
+        if self.run.as_ref().is_some_and(|r| r.session.sim().done()) {
             return Ok(self.obs.clone_ref(py));
         }
-        self.read(py)
+        self.read(py).map_err(|e| self.fail(py, e))
     }
 }

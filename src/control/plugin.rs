@@ -28,6 +28,42 @@ use std::ffi::{c_char, c_void, CStr, CString};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// A plugin's message buffer as exoleg prints it: up to the first NUL (the last byte is one
+/// whatever the plugin wrote), invalid UTF-8 replaced, trimmed, control characters escaped.
+pub fn message_text(buf: &[c_char; MESSAGE_LEN]) -> String {
+    let mut m = *buf;
+    m[MESSAGE_LEN - 1] = 0;
+    // SAFETY: NUL-terminated within the buffer (forced above).
+    let text = escape_controls(unsafe { CStr::from_ptr(m.as_ptr()) }.to_string_lossy().trim());
+    if text.is_empty() {
+        "(no message)".into()
+    } else {
+        text
+    }
+}
+
+/// The fuzz target `plugin_abi`: what the host makes of the bytes a plugin hands back (its
+/// message buffer, and channel names for `controller.plugin.log`): the message is one line
+/// without control characters; accepted names make a CSV header with one column each.
+pub fn fuzz_plugin_abi(bytes: &[u8]) -> Result<(), String> {
+    let mut buf = [0 as c_char; MESSAGE_LEN];
+    for (b, x) in buf.iter_mut().zip(bytes) {
+        *b = *x as c_char;
+    }
+    let m = message_text(&buf);
+    if m.chars().any(char::is_control) {
+        return Err(format!("a control character in {m:?}"));
+    }
+    let names: Vec<String> = String::from_utf8_lossy(bytes).split('\u{1f}').take(32).map(String::from).collect();
+    crate::record::check_log_names(&names)?;
+    let header: Vec<String> = names.iter().map(|n| format!("log_{n}")).collect();
+    let line = header.join(",");
+    if line.split(',').count() != names.len() || line.contains(['"', '\n', '\r', ' ']) {
+        return Err(format!("accepted names make a bad header: {line:?}"));
+    }
+    Ok(())
+}
+
 /// The ABI's major version: a library reporting another major is refused.
 pub const ABI_MAJOR: u32 = 1;
 /// The ABI's minor version (additions at the end of the structs; sizes tell them apart): 1.1
@@ -283,14 +319,12 @@ impl PluginLibrary {
         if !meta.is_file() {
             return Err(format!("{}: not a regular file", path.display()));
         }
-        // SAFETY: loading a library runs its initialisers; the user names the library to run
-        // as their controller, which is the point of a plugin (documented).
-        let lib = unsafe { libloading::Library::new(path) }
-            .map_err(|e| format!("{}: cannot load the library: {e}", path.display()))?;
+        let lib = open_now(path)?;
         let abi_version = {
             // SAFETY: the symbol's type is the ABI's `uint32_t exoleg_abi_version(void)`.
             let f = unsafe { lib.get::<AbiFn>(b"exoleg_abi_version\0") }
                 .map_err(|_| format!("{}: no symbol `exoleg_abi_version` (not an exoleg plugin)", path.display()))?;
+            let _guard = exit_guard::arm();
             // SAFETY: a C function without arguments.
             unsafe { f() }
         };
@@ -314,6 +348,91 @@ impl PluginLibrary {
     /// The library's file name, for messages.
     pub fn name(&self) -> String {
         self.path.file_name().map_or_else(|| self.path.display().to_string(), |n| n.to_string_lossy().into_owned())
+    }
+}
+
+/// Open a library with every symbol it needs resolved now (`RTLD_NOW`): a symbol nothing
+/// provides is an error here, naming it, not a crash at its first call in the middle of a run.
+fn open_now(path: &Path) -> Result<libloading::Library, String> {
+    use libloading::os::unix::{Library, RTLD_LOCAL, RTLD_NOW};
+    let _guard = exit_guard::arm();
+    // SAFETY: loading a library runs its initialisers; the user names the library to run
+    // as their controller, which is the point of a plugin (documented).
+    let lib = unsafe { Library::open(Some(path), RTLD_NOW | RTLD_LOCAL) }.map_err(|e| {
+        let text = escape_controls(&e.to_string());
+        match text.split_once("undefined symbol: ") {
+            Some((_, sym)) => format!(
+                "{}: the library needs the symbol `{}`, which neither it nor what it links provides (every \
+                 symbol is resolved when the plugin loads: link the library that defines it)",
+                path.display(),
+                sym.split([' ', ',', ')']).next().unwrap_or(sym)
+            ),
+            None => format!("{}: cannot load the library: {text}", path.display()),
+        }
+    })?;
+    Ok(lib.into())
+}
+
+/// `s` with every control character escaped (a plugin's or a loader's message on one line,
+/// with nothing that moves a terminal's cursor).
+pub fn escape_controls(s: &str) -> String {
+    s.chars().flat_map(|c| if c.is_control() { c.escape_default().collect::<Vec<_>>() } else { vec![c] }).collect()
+}
+
+/// The process's exit status while a plugin runs: a plugin that calls `exit()` (whatever the
+/// code) cannot make an unfinished run look finished. While armed (the CLI's whole command;
+/// every call into a plugin), an `atexit` handler turns any exit that exoleg did not make
+/// into exit 3 with a message; exoleg's own exits go through [`exit_guard::exit`].
+pub mod exit_guard {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+    static ARMED: AtomicUsize = AtomicUsize::new(0);
+    static EXITING: AtomicBool = AtomicBool::new(false);
+    static INSTALL: std::sync::Once = std::sync::Once::new();
+
+    extern "C" {
+        fn atexit(f: extern "C" fn()) -> std::ffi::c_int;
+        fn _exit(code: std::ffi::c_int) -> !;
+        fn write(fd: std::ffi::c_int, buf: *const std::ffi::c_void, n: usize) -> isize;
+    }
+
+    extern "C" fn on_exit() {
+        if ARMED.load(Ordering::SeqCst) > 0 && !EXITING.load(Ordering::SeqCst) {
+            let msg: &[u8] = b"error: something in the run (a controller plugin?) called exit() before exoleg \
+                finished: the run did not complete and its outputs are not written (exit 3)\n";
+            // SAFETY: write(2) and _exit(2) are async-signal-safe and take valid arguments.
+            unsafe {
+                write(2, msg.as_ptr().cast(), msg.len());
+                _exit(crate::error::EXIT_SIM_FAILED)
+            }
+        }
+    }
+
+    /// Armed until dropped.
+    #[must_use]
+    pub struct Armed(());
+
+    impl Drop for Armed {
+        fn drop(&mut self) {
+            ARMED.fetch_sub(1, Ordering::SeqCst);
+        }
+    }
+
+    /// Arm the guard (installing its handler the first time).
+    pub fn arm() -> Armed {
+        INSTALL.call_once(|| {
+            // SAFETY: registers a plain function; atexit fails only without memory (then the
+            // guard is simply not there).
+            unsafe { atexit(on_exit) };
+        });
+        ARMED.fetch_add(1, Ordering::SeqCst);
+        Armed(())
+    }
+
+    /// Exit the process with `code` as exoleg means it (the guard stands aside).
+    pub fn exit(code: i32) -> ! {
+        EXITING.store(true, Ordering::SeqCst);
+        std::process::exit(code)
     }
 }
 
@@ -373,6 +492,7 @@ impl PluginSetup {
             reserved: 0,
             params: params.as_ptr(),
         };
+        let _guard = exit_guard::arm();
         // SAFETY: `info` and the parameters it points to live through the call.
         let handle = unsafe { (self.lib.create)(&info) };
         if handle.is_null() {
@@ -468,15 +588,7 @@ unsafe impl Send for PluginController {}
 
 impl PluginController {
     fn message(&self) -> String {
-        let mut m = self.command.message;
-        m[MESSAGE_LEN - 1] = 0;
-        // SAFETY: NUL-terminated within the buffer (forced above).
-        let text = unsafe { CStr::from_ptr(m.as_ptr()) }.to_string_lossy().trim().to_string();
-        if text.is_empty() {
-            "(no message)".into()
-        } else {
-            text
-        }
+        message_text(&self.command.message)
     }
 
     fn fill(&mut self, s: &SampleInput) {
@@ -549,6 +661,7 @@ impl DiscreteController for PluginController {
     }
 
     fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
+        let _guard = exit_guard::arm();
         self.command = ExolegCommand::default();
         if !self.reset {
             self.reset = true;
@@ -590,6 +703,7 @@ impl DiscreteController for PluginController {
 
 impl Drop for PluginController {
     fn drop(&mut self) {
+        let _guard = exit_guard::arm();
         // SAFETY: the instance was created by this library and is destroyed once.
         unsafe { (self.setup.lib.destroy)(self.handle) }
     }

@@ -17,7 +17,10 @@ mod slave;
 mod variables;
 
 pub use description::{model_description, DescriptionInfo};
-pub use package::{default_library, package, platform_folder, FmuReport, LIBRARY_FILE};
+pub use package::{
+    check_library, default_library, fuzz_fmu_library, has_fmu_comment, is_exoleg_fmu, out_rule, package,
+    platform_folder, read_library, FmuReport, FMU_COMMENT, LIBRARY_FILE, MAX_LIBRARY_BYTES,
+};
 pub use slave::{uri_to_path, FmiError, FmiResult, Phase, Slave};
 pub use variables::{nominal_values, variables, Causality, Role, VarType, Variable, NOMINAL, PARAMETERS, UNITS};
 

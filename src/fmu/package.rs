@@ -41,6 +41,94 @@ pub fn default_library() -> Option<PathBuf> {
     std::env::current_exe().ok()?.parent().map(|d| d.join(LIBRARY_FILE))
 }
 
+/// Largest FMU library `exoleg fmu` reads (bytes).
+pub const MAX_LIBRARY_BYTES: u64 = 512 << 20;
+
+/// The marker the FMU library carries (`fmu/src/lib.rs`: `exoleg-fmu-library/<version>/fmi2-cs`),
+/// kept here reversed: this executable holds the check, never the marker itself (so the exoleg
+/// binary is not taken for the library).
+const MARKER_PREFIX_REVERSED: &[u8] = b"/yrarbil-umf-gelox";
+/// The end of the marker.
+const MARKER_SUFFIX: &[u8] = b"/fmi2-cs\0";
+
+/// The zip comment of every FMU exoleg writes (how `exoleg fmu` recognises its own file).
+pub const FMU_COMMENT: &str = "exoleg FMU";
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    if needle.is_empty() || hay.len() < needle.len() {
+        return None;
+    }
+    let first = needle[0];
+    (0..=hay.len() - needle.len()).find(|&i| hay[i] == first && hay[i..i + needle.len()] == *needle)
+}
+
+/// Check that `bytes` are exoleg's FMU library of this version (read, never loaded): a shared
+/// library of this platform carrying the `exoleg-fmu` crate's marker. The error says what the
+/// file is instead.
+pub fn check_library(bytes: &[u8]) -> std::result::Result<(), String> {
+    const BUILD: &str = "build it with `cargo build --release -p exoleg-fmu`";
+    if bytes.is_empty() {
+        return Err(format!("is empty, not the FMU library ({BUILD})"));
+    }
+    let shared = if cfg!(target_os = "linux") {
+        bytes.len() > 18 && bytes.starts_with(b"\x7fELF") && bytes[16] == 3 && bytes[17] == 0
+    } else {
+        bytes.len() > 4
+    };
+    if !shared {
+        return Err(format!("is not a shared library (the FMU library is; {BUILD})"));
+    }
+    let mut prefix = std::hint::black_box(MARKER_PREFIX_REVERSED).to_vec();
+    prefix.reverse();
+    let Some(at) = find(bytes, &prefix) else {
+        return Err(format!(
+            "is a shared library or program, but not exoleg's FMU library (it has no exoleg-fmu marker: a plugin, or \
+             another library?); {BUILD}"
+        ));
+    };
+    let rest = &bytes[at + prefix.len()..];
+    let version: String =
+        rest.iter().take(40).take_while(|b| b.is_ascii_graphic() && **b != b'/').map(|b| *b as char).collect();
+    let ours = rest.starts_with(env!("CARGO_PKG_VERSION").as_bytes())
+        && rest[env!("CARGO_PKG_VERSION").len()..].starts_with(MARKER_SUFFIX);
+    if !ours {
+        return Err(format!(
+            "is the FMU library of exoleg {version}, this is exoleg {}: {BUILD} from the same source",
+            env!("CARGO_PKG_VERSION")
+        ));
+    }
+    Ok(())
+}
+
+/// True when `f` is an FMU exoleg wrote: a zip whose comment is [`FMU_COMMENT`] (at most
+/// 64 KiB from its end; the end-of-central-directory record).
+pub fn is_exoleg_fmu(f: &mut std::fs::File, len: u64) -> bool {
+    use std::io::{Read, Seek, SeekFrom};
+    let tail_len = len.min(22 + 65_535);
+    if tail_len < 22 || f.seek(SeekFrom::Start(len - tail_len)).is_err() {
+        return false;
+    }
+    let mut tail = Vec::new();
+    f.take(tail_len).read_to_end(&mut tail).is_ok() && has_fmu_comment(&tail)
+}
+
+/// True when the end of a zip (`tail`: its last bytes) has exoleg's FMU comment.
+pub fn has_fmu_comment(tail: &[u8]) -> bool {
+    if tail.len() < 22 {
+        return false;
+    }
+    let Some(at) = (0..=tail.len() - 22).rev().find(|&i| tail[i..i + 4] == *b"PK\x05\x06") else { return false };
+    let n = u16::from_le_bytes([tail[at + 20], tail[at + 21]]) as usize;
+    tail.get(at + 22..at + 22 + n).is_some_and(|c| c == FMU_COMMENT.as_bytes())
+}
+
+/// The fuzz target `fmu_library`: the checks `exoleg fmu` makes of a library and of an
+/// existing `--out` file, on arbitrary bytes (never loaded, never a panic).
+pub fn fuzz_fmu_library(bytes: &[u8]) -> bool {
+    let lib = check_library(bytes).is_ok();
+    has_fmu_comment(bytes) || lib
+}
+
 /// What `exoleg fmu` wrote.
 #[derive(Debug, Clone)]
 pub struct FmuReport {
@@ -135,7 +223,8 @@ fn stage_resources(dir: &Path, text: &str, files: &[(String, PathBuf)]) -> Resul
     std::fs::write(&scenario, text).map_err(|e| io(&scenario, e))?;
     for (name, src) in files {
         let dst = dir.join("files").join(name);
-        std::fs::copy(src, &dst).map_err(|e| Error::Read { path: src.clone(), message: e.to_string() })?;
+        let bytes = crate::fsio::read_input(src, crate::scenario::MAX_INPUT_FILE_BYTES)?;
+        std::fs::write(&dst, bytes).map_err(|e| io(&dst, e))?;
     }
     let (slave, _, guid) = Slave::open(dir).map_err(|e| {
         Error::Usage(format!("the FMU's own scenario does not run ({}); please report this", e.message))
@@ -143,15 +232,33 @@ fn stage_resources(dir: &Path, text: &str, files: &[(String, PathBuf)]) -> Resul
     Ok((slave, guid))
 }
 
-/// Write the FMU of `resolved` to `out` (through a temporary file, renamed when complete),
-/// with `library` (the `exoleg-fmu` crate's shared library) as its binary.
-pub fn package(resolved: &ResolvedScenario, library: &Path, out: &Path) -> Result<FmuReport> {
-    let lib = std::fs::read(library).map_err(|e| Error::Read {
-        path: library.to_path_buf(),
-        message: format!(
+/// The rule for `exoleg fmu --out`: a new file, or an FMU exoleg wrote that is none of
+/// `inputs`.
+pub fn out_rule(inputs: &[PathBuf]) -> crate::fsio::OutFile<'_> {
+    crate::fsio::OutFile { flag: "--out", what: "an FMU exoleg wrote", inputs, ours: is_exoleg_fmu }
+}
+
+/// Read and check the FMU library (a regular file, capped, exoleg's of this version).
+pub fn read_library(library: &Path) -> Result<Vec<u8>> {
+    let bad = |m: String| Error::input("--library", library.display().to_string(), m);
+    let lib = crate::fsio::read_capped(library, MAX_LIBRARY_BYTES).map_err(|e| {
+        bad(format!(
             "{e} (the FMU's library: build it with `cargo build --release -p exoleg-fmu`, or pass --library PATH)"
-        ),
+        ))
     })?;
+    check_library(&lib).map_err(bad)?;
+    Ok(lib)
+}
+
+/// Write the FMU of `resolved` to `out` (through a temporary file, renamed when complete),
+/// with `library` (the `exoleg-fmu` crate's shared library) as its binary. `out` is checked
+/// first ([`out_rule`]: never one of `inputs`, the library, or anything exoleg did not write).
+pub fn package(resolved: &ResolvedScenario, library: &Path, out: &Path, inputs: &[PathBuf]) -> Result<FmuReport> {
+    let mut inputs = inputs.to_vec();
+    inputs.extend(resolved.input_paths());
+    inputs.push(library.to_path_buf());
+    crate::fsio::check_out(out, &out_rule(&inputs))?;
+    let lib = read_library(library)?;
     let (text, files) = resource_scenario(resolved)?;
     let stage = tempfile::tempdir()
         .map_err(|e| Error::Write { path: std::env::temp_dir(), message: format!("temporary folder: {e}") })?;
@@ -174,7 +281,7 @@ pub fn package(resolved: &ResolvedScenario, library: &Path, out: &Path) -> Resul
         let bytes = std::fs::read(&p).map_err(|e| Error::Read { path: p.clone(), message: e.to_string() })?;
         entries.push((format!("resources/files/{n}"), bytes, 0o644));
     }
-    let bytes = write_zip(out, &entries)?;
+    let bytes = write_zip(out, &entries, &out_rule(&inputs))?;
     let vars = slave.variables();
     Ok(FmuReport {
         guid,
@@ -186,29 +293,20 @@ pub fn package(resolved: &ResolvedScenario, library: &Path, out: &Path) -> Resul
     })
 }
 
-/// Write a zip of `entries` (name, bytes, unix mode) to `out` atomically; returns its size.
-fn write_zip(out: &Path, entries: &[(String, Vec<u8>, u32)]) -> Result<u64> {
-    let io = |e: &dyn std::fmt::Display| Error::Write { path: out.to_path_buf(), message: e.to_string() };
-    let dir = match out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    if out.is_dir() {
-        return Err(Error::Usage(format!("--out {} is a folder: give the FMU's file name", out.display())));
-    }
-    let tmp = tempfile::NamedTempFile::new_in(&dir).map_err(|e| io(&e))?;
-    let mut zip = zip::ZipWriter::new(tmp.reopen().map_err(|e| io(&e))?);
-    for (name, bytes, mode) in entries {
-        let opts = zip::write::SimpleFileOptions::default()
-            .compression_method(zip::CompressionMethod::Deflated)
-            .last_modified_time(zip::DateTime::default())
-            .unix_permissions(*mode);
-        zip.start_file(name.as_str(), opts).map_err(|e| io(&e))?;
-        zip.write_all(bytes).map_err(|e| io(&e))?;
-    }
-    let f = zip.finish().map_err(|e| io(&e))?;
-    f.sync_all().map_err(|e| io(&e))?;
-    let len = f.metadata().map_err(|e| io(&e))?.len();
-    tmp.persist(out).map_err(|e| io(&e.error))?;
-    Ok(len)
+/// Write a zip of `entries` (name, bytes, unix mode) to `out` under `rule`; returns its size.
+fn write_zip(out: &Path, entries: &[(String, Vec<u8>, u32)], rule: &crate::fsio::OutFile) -> Result<u64> {
+    crate::fsio::write_out(out, rule, |f| {
+        let mut zip = zip::ZipWriter::new(&mut *f);
+        for (name, bytes, mode) in entries {
+            let opts = zip::write::SimpleFileOptions::default()
+                .compression_method(zip::CompressionMethod::Deflated)
+                .last_modified_time(zip::DateTime::default())
+                .unix_permissions(*mode);
+            zip.start_file(name.as_str(), opts).map_err(std::io::Error::other)?;
+            zip.write_all(bytes)?;
+        }
+        zip.set_comment(FMU_COMMENT).map_err(std::io::Error::other)?;
+        zip.finish().map_err(std::io::Error::other)?;
+        Ok(())
+    })
 }

@@ -236,6 +236,11 @@ impl Slave {
             if Some(stop) != self.base.file.sim.duration_s.into() {
                 overrides.push(("sim.duration_s".to_string(), serde_json::Value::from(stop)));
             }
+            // `metrics.settle_s` only shapes a run's summary, which an FMU has none of: a stop
+            // time shorter than it (a gait scenario's run-in) is the master's to choose.
+            if stop <= self.base.file.metrics.settle_s {
+                overrides.push(("metrics.settle_s".to_string(), serde_json::Value::from(0.0)));
+            }
         }
         Ok(self.base.with_values(overrides)?)
     }

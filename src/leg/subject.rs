@@ -199,6 +199,23 @@ pub fn leg_length_m(s: &SubjectBody) -> f64 {
     thigh.length_m + shank.length_m + ankle
 }
 
+/// The built-in leg `[subject]` scales for `s` (`builtin:exo_leg` for a man,
+/// `builtin:exo_leg_small` for a woman).
+pub fn template_urdf(s: &SubjectBody) -> String {
+    format!("builtin:{}", body(s).3.name)
+}
+
+/// How every URDF [`scaled_urdf`] writes begins.
+const SCALED_URDF_HEAD: &str = "<?xml version=\"1.0\"?>\n<!-- exoleg: the built-in leg scaled to a ";
+
+/// True when `f` is a URDF `exoleg urdf` wrote (it begins as [`scaled_urdf`]'s do, and is
+/// small): the one file `exoleg urdf --out` replaces.
+pub fn is_scaled_urdf(f: &mut std::fs::File, len: u64) -> bool {
+    use std::io::Read;
+    let mut head = vec![0u8; SCALED_URDF_HEAD.len()];
+    len < 1 << 20 && f.read_exact(&mut head).is_ok() && head == SCALED_URDF_HEAD.as_bytes()
+}
+
 /// The URDF of the built-in leg scaled to `s` (see the module doc). `s` must be valid
 /// (positive, finite; checked by the scenario).
 pub fn scaled_urdf(s: &SubjectBody) -> String {

@@ -692,7 +692,7 @@ pub fn check_criteria(c: &Criteria, s: &Summary) -> Vec<CriterionResult> {
         s.knee_max_abs_error_deg.unwrap_or(nan),
         s.valve_saturation_fraction,
         s.force_limit_fraction,
-        s.contact.as_ref().filter(|c| c.pelvic_tilt.is_some()).map_or(nan, |c| c.not_walking.len() as f64),
+        s.contact.as_ref().and_then(|c| c.not_walking.as_ref()).map_or(nan, |v| v.len() as f64),
     ];
     c.limits()
         .into_iter()

@@ -170,8 +170,10 @@ pub struct ContactSummary {
     /// under [`NOT_WALKING_DRAG_RATIO`] of the vertical one), or, when the data's knee moment
     /// is known, a stance knee moment far off the data's ([`NOT_WALKING_KNEE_MOMENT_R`],
     /// [`NOT_WALKING_KNEE_MOMENT_RMS`]). `criteria.max_not_walking_flags = 0` fails such a run.
-    #[serde(default)]
-    pub not_walking: Vec<String>,
+    /// Absent where it is not evaluated (not loaded walking, or no row after the run-in): no
+    /// flag there means nothing, not "walking".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub not_walking: Option<Vec<String>>,
     /// The pelvic tilt the run assumed (loaded walking only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pelvic_tilt: Option<String>,
@@ -286,10 +288,10 @@ impl WalkingMetrics {
     }
 
     /// Why the run is not walking (loaded walking only; see [`ContactSummary::not_walking`]).
-    fn not_walking(&self, stance_fraction: f64, dataset: Option<&DatasetComparison>) -> Vec<String> {
-        let (Some(data), Some(stride)) = (self.data.as_ref(), self.stride_s) else { return Vec::new() };
+    fn not_walking(&self, stance_fraction: f64, dataset: Option<&DatasetComparison>) -> Option<Vec<String>> {
+        let (Some(data), Some(stride)) = (self.data.as_ref(), self.stride_s) else { return None };
         if self.rows_after == 0 {
-            return Vec::new();
+            return None;
         }
         let mut why = Vec::new();
         if stance_fraction > NOT_WALKING_STANCE_FRACTION {
@@ -344,7 +346,7 @@ impl WalkingMetrics {
             ));
         }
         why.extend(dataset.and_then(knee_moment_off));
-        why
+        Some(why)
     }
 
     /// The figures.

@@ -23,7 +23,7 @@ pub fn indicators(s: &Summary) -> Vec<(String, f64)> {
             put("grf_correlation", Some(d.grf_correlation));
             put("knee_moment_stance_correlation", Some(d.knee_moment_stance_correlation));
         }
-        put("not_walking_flags", c.pelvic_tilt.as_ref().map(|_| c.not_walking.len() as f64));
+        put("not_walking_flags", c.not_walking.as_ref().map(|v| v.len() as f64));
     }
     let Some(w) = &s.wearer else { return out };
     for p in &w.phases {

@@ -223,9 +223,12 @@ impl OutputDir {
             Some(n) if !dots => n.to_string_lossy().to_string(),
             _ => return Err(bad("has no folder name (`.`, `..` or a root): name the folder")),
         };
+        // Absolute from here on: nothing the run does later (a plugin changing the working
+        // directory) moves where its outputs go.
+        let out = &std::path::absolute(out).map_err(|e| bad(&e.to_string()))?;
         let parent = match out.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
+            _ => PathBuf::from("/"),
         };
         std::fs::create_dir_all(&parent).map_err(|e| werr(&parent, e))?;
         remove_stale_temporaries(&parent, &name);

@@ -23,37 +23,27 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
     format!("{:x}", Sha256::digest(bytes))
 }
 
-/// Read a text file with a size cap; errors name the path.
+/// Most bytes of a plugin library hashed.
+pub const MAX_PLUGIN_BYTES: u64 = 1 << 30;
+
+/// Read a text file with a size cap (a regular file, never waited on); errors name the path.
 pub fn read_capped(path: &Path, cap: u64) -> Result<String> {
-    let rerr = |e: std::io::Error| Error::Read { path: path.to_path_buf(), message: e.to_string() };
-    let meta = std::fs::metadata(path).map_err(rerr)?;
-    if !meta.is_file() {
-        return Err(Error::Read { path: path.to_path_buf(), message: "not a regular file".into() });
-    }
-    if meta.len() > cap {
-        return Err(Error::Read {
-            path: path.to_path_buf(),
-            message: format!("{} bytes, more than the {} byte limit", meta.len(), cap),
-        });
-    }
-    use std::io::Read;
-    let mut text = String::new();
-    std::fs::File::open(path).map_err(rerr)?.take(cap + 1).read_to_string(&mut text).map_err(rerr)?;
-    if text.len() as u64 > cap {
-        return Err(Error::Read { path: path.to_path_buf(), message: format!("more than the {cap} byte limit") });
-    }
-    Ok(text)
+    let bytes = crate::fsio::read_input(path, cap)?;
+    String::from_utf8(bytes).map_err(|e| Error::Read {
+        path: path.to_path_buf(),
+        message: format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+    })
 }
 
-/// SHA-256 of a regular file's bytes (streamed), as lowercase hex.
+/// SHA-256 of a regular file's bytes (streamed, at most [`MAX_PLUGIN_BYTES`]), as lowercase hex.
 fn file_sha256(path: &Path) -> std::result::Result<String, String> {
-    let meta = std::fs::metadata(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    if !meta.is_file() {
-        return Err(format!("{}: not a regular file", path.display()));
+    let (f, len) = crate::fsio::open_regular(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if len > MAX_PLUGIN_BYTES {
+        return Err(format!("{}: {len} bytes, more than the {MAX_PLUGIN_BYTES} byte limit", path.display()));
     }
-    let mut f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut h = Sha256::new();
-    std::io::copy(&mut f, &mut h).map_err(|e| format!("{}: {e}", path.display()))?;
+    use std::io::Read;
+    std::io::copy(&mut f.take(MAX_PLUGIN_BYTES), &mut h).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(format!("{:x}", h.finalize()))
 }
 
@@ -77,7 +67,12 @@ pub fn resolve_path(source_name: &str, key: &str, file: &str, base_dir: Option<&
                 let what = if m.is_dir() { "a directory" } else { "not a regular file (a device, FIFO or socket)" };
                 return Err(Error::input(source_name, key, format!("{} is {what}: give a file", c.display())));
             }
-            Err(_) => continue,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            // A link loop, a denied folder: say so, not "not found".
+            Err(e) => {
+                let m = crate::fsio::io_message(&e);
+                return Err(Error::input(source_name, key, format!("{}: {m}", c.display())));
+            }
         }
     }
     let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();

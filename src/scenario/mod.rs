@@ -398,6 +398,10 @@ pub struct Scenario {
     pub path: Option<std::path::PathBuf>,
     /// The validated values.
     pub file: ScenarioFile,
+    /// Read from a `summary.json` of a run whose controller came from outside the scenario
+    /// (a Python callable, a Rust controller, a loop the caller owns): that controller, which
+    /// the file does not hold. [`Scenario::own_controller`] refuses to replay it without it.
+    pub external_controller: Option<String>,
 }
 
 /// Suffix of a source name whose scenario had `--set` overrides.
@@ -416,16 +420,38 @@ impl Scenario {
             Some(p) => {
                 let name = p.display().to_string();
                 let text = files::read_capped(p, files::MAX_SCENARIO_FILE_BYTES)?;
-                let table = if p.extension().is_some_and(|e| e == "json") {
-                    overrides::parse_json(&name, &text)?
-                } else {
-                    overrides::parse_toml(&name, &text)?
-                };
-                (name, table)
+                if p.extension().is_some_and(|e| e == "json") {
+                    let (table, external) = overrides::parse_json(&name, &text)?;
+                    let base = p.parent().map(|d| d.to_path_buf());
+                    let s = Self::from_table(name, table, sets)?;
+                    let path = Some(p.to_path_buf());
+                    return Ok(Scenario { base_dir: base, path, external_controller: external, ..s });
+                }
+                (name.clone(), overrides::parse_toml(&name, &text)?)
             }
         };
         let base = path.and_then(|p| p.parent()).map(|d| d.to_path_buf());
         Self::from_table(name, table, sets).map(|s| Scenario { base_dir: base, path: path.map(Path::to_path_buf), ..s })
+    }
+
+    /// Refuse to run this scenario with its own controller when it comes from a `summary.json`
+    /// of a run whose controller came from outside (which the file does not hold): exit 2
+    /// naming the controller, instead of silently replaying another one.
+    pub fn own_controller(&self) -> Result<()> {
+        match &self.external_controller {
+            None => Ok(()),
+            Some(c) => Err(Error::input(
+                &self.source_name,
+                "external_controller",
+                format!(
+                    "the run was made with the controller `{c}` given to it from outside the scenario (Python, \
+                     Rust or a loop of your own), which summary.json does not hold: replaying it would run the \
+                     scenario's controller ({}) instead; give that controller again (Python: exoleg.run(path, \
+                     controller=...))",
+                    self.file.controller.kind.as_str()
+                ),
+            )),
+        }
     }
 
     /// Parse scenario text (TOML) with a name for error messages, apply overrides, validate.
@@ -444,7 +470,7 @@ impl Scenario {
             Error::input(&source, if key == "." { "scenario".to_string() } else { key }, msg)
         })?;
         validate::validate(&source, &file)?;
-        Ok(Scenario { source_name: source, base_dir: None, path: None, file })
+        Ok(Scenario { source_name: source, base_dir: None, path: None, file, external_controller: None })
     }
 
     /// A scenario given as JSON data (an object of sections, the Python package's dicts), with
@@ -487,7 +513,12 @@ impl Scenario {
             format!("{}{WITH_SET}", self.source_name)
         };
         let s = Self::from_table(name, table, &[])?;
-        Ok(Scenario { base_dir: self.base_dir.clone(), path: self.path.clone(), ..s })
+        Ok(Scenario {
+            base_dir: self.base_dir.clone(),
+            path: self.path.clone(),
+            external_controller: self.external_controller.clone(),
+            ..s
+        })
     }
 
     /// Same scenario with overrides applied on top (used by `compare` and sweeps).
@@ -500,7 +531,12 @@ impl Scenario {
             _ => return Err(Error::input(&self.source_name, "scenario", "cannot re-serialise scenario")),
         };
         let s = Self::from_table(self.source_name.clone(), table, sets)?;
-        Ok(Scenario { base_dir: self.base_dir.clone(), path: self.path.clone(), ..s })
+        Ok(Scenario {
+            base_dir: self.base_dir.clone(),
+            path: self.path.clone(),
+            external_controller: self.external_controller.clone(),
+            ..s
+        })
     }
 }
 

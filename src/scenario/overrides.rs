@@ -16,15 +16,24 @@ pub(super) fn parse_toml(name: &str, text: &str) -> Result<toml::Table> {
 }
 
 /// Parse a JSON scenario, or a `summary.json` (its `scenario` field is used).
-pub(super) fn parse_json(name: &str, text: &str) -> Result<toml::Table> {
+/// A scenario in JSON, or a `summary.json`'s `scenario`; with it, for a summary, the
+/// controller from outside the scenario that made the run (`external_controller`), if any.
+pub(super) fn parse_json(name: &str, text: &str) -> Result<(toml::Table, Option<String>)> {
     let v: serde_json::Value =
         serde_json::from_str(text).map_err(|e| Error::input(name, "", format!("malformed JSON: {e}")))?;
-    let v = match v.get("scenario") {
-        Some(s) if v.get("max_abs_force_error_n").is_some() => s.clone(),
-        _ => v,
+    let (v, external) = match v.get("scenario") {
+        Some(s) if v.get("max_abs_force_error_n").is_some() => {
+            let external = match v.get("external_controller") {
+                None | Some(serde_json::Value::Null) => None,
+                Some(serde_json::Value::String(c)) => Some(c.chars().take(200).collect()),
+                Some(other) => Some(other.to_string().chars().take(200).collect()),
+            };
+            (s.clone(), external)
+        }
+        _ => (v, None),
     };
     match json_to_toml(name, "", v)? {
-        toml::Value::Table(t) => Ok(t),
+        toml::Value::Table(t) => Ok((t, external)),
         _ => Err(Error::input(name, "", "a scenario must be a JSON object")),
     }
 }

@@ -101,6 +101,7 @@ pub(super) fn validate(src: &str, f: &ScenarioFile) -> Result<()> {
     sensors_and_actuator(&c, f)?;
     leg_human_metrics(&c, f)?;
     subject(&c, f)?;
+    contradictions(&c, f)?;
     if !(1..=1_000_000_000).contains(&f.output.every_steps) {
         return Err(c.fail("output.every_steps", format!("must be 1..=1000000000, got {}", f.output.every_steps)));
     }
@@ -119,6 +120,46 @@ fn subject(c: &Check, f: &ScenarioFile) -> Result<()> {
         return Err(c.fail(
             "hip.subject_mass_kg",
             format!("{m} kg contradicts subject.mass_kg = {} kg: give the mass once", s.mass_kg),
+        ));
+    }
+    Ok(())
+}
+
+/// Keys another key makes meaningless, refused rather than silently ignored: a trial and a
+/// gait file; a built-in leg of the other sex than `[subject]`'s template; the ground's height
+/// on the carriage (there the ground is at z = 0 and the pelvis at the data's hip height above
+/// it: a height would only move the whole world).
+fn contradictions(c: &Check, f: &ScenarioFile) -> Result<()> {
+    let defaults = ScenarioFile::default();
+    if f.reference.gait_file.is_some() && f.reference.gait_trial != defaults.reference.gait_trial {
+        return Err(c.fail(
+            "reference.gait_trial",
+            format!(
+                "`{}` contradicts reference.gait_file (the file is the gait): give one of the two",
+                f.reference.gait_trial
+            ),
+        ));
+    }
+    if let Some(s) = &f.subject {
+        let template = crate::leg::subject::template_urdf(&s.body());
+        if f.leg.urdf.starts_with("builtin:") && f.leg.urdf != template && f.leg.urdf != defaults.leg.urdf {
+            return Err(c.fail(
+                "leg.urdf",
+                format!(
+                    "`{}` contradicts [subject]: it scales the built-in leg of the subject's sex ({template}); leave \
+                     leg.urdf out, or give your own URDF (then [subject] sets the mass only)",
+                    f.leg.urdf
+                ),
+            ));
+        }
+    }
+    let carriage = f.hip.mode == Some(crate::human::HipMode::Carriage)
+        || (f.hip.mode.is_none() && f.reference.kind == ReferenceKind::Pose);
+    if carriage && f.ground.height_m.is_some() {
+        return Err(c.fail(
+            "ground.height_m",
+            "on the carriage the ground is at z = 0 and the pelvis at the data's hip height above it: a height would \
+             only move the whole world; leave it out",
         ));
     }
     Ok(())
@@ -273,6 +314,16 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
                 ),
             ));
         }
+        if ct.sample_period_s > f.sim.duration_s {
+            return Err(c.fail(
+                "controller.sample_period_s",
+                format!(
+                    "{} s is longer than the run (sim.duration_s = {} s): the controller would see one sample only",
+                    num(ct.sample_period_s),
+                    num(f.sim.duration_s)
+                ),
+            ));
+        }
     }
     if ct.kind.sampled_only() && ct.sample_period_s == 0.0 {
         return Err(c.fail(
@@ -290,6 +341,7 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
                 c.fail("controller.plugin.log", format!("at most {} names", crate::control::plugin::PLUGIN_LOG_LEN))
             );
         }
+        crate::record::check_log_names(&ct.plugin.log).map_err(|m| c.fail("controller.plugin.log", m))?;
     }
     c.non_negative("controller.resonator_hz", ct.resonator_hz)?;
     if ct.resonator_hz > 0.0 && ct.sample_period_s > 0.0 && ct.resonator_hz >= 0.5 / ct.sample_period_s {

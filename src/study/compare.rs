@@ -100,6 +100,46 @@ pub struct CaseResult {
     pub failure: Option<String>,
 }
 
+/// Largest `--json` report exoleg recognises as its own (bytes).
+const MAX_REPORT_BYTES: u64 = 16 << 20;
+
+/// True when `f` holds a report `exoleg compare --json` wrote (the paper's cases, or the
+/// firmware table): a JSON array of objects with exactly the fields exoleg writes.
+pub fn is_report_json(f: &mut std::fs::File, len: u64) -> bool {
+    const CASES: [&str; 7] = [
+        "case",
+        "failure",
+        "force_convergence_band_n",
+        "force_convergence_time_s",
+        "max_abs_force_error_n",
+        "max_error_diff_pct",
+        "rms_force_error_n",
+    ];
+    const FIRMWARE: [&str; 2] = ["case", "cells"];
+    if len > MAX_REPORT_BYTES {
+        return false;
+    }
+    let bytes = crate::fsio::head(f, MAX_REPORT_BYTES as usize);
+    let Ok(serde_json::Value::Array(items)) = serde_json::from_slice::<serde_json::Value>(&bytes) else {
+        return false;
+    };
+    fn keys(v: &serde_json::Value) -> Option<Vec<&str>> {
+        v.as_object().map(|o| {
+            let mut k: Vec<&str> = o.keys().map(String::as_str).collect();
+            k.sort_unstable();
+            k
+        })
+    }
+    let first = items.first().and_then(keys);
+    let ok = |k: &Vec<&str>| k.as_slice() == CASES || k.as_slice() == FIRMWARE;
+    first.as_ref().is_some_and(ok) && items.iter().all(|v| keys(v) == first)
+}
+
+/// The rule for `compare --json`: a new file, or a report exoleg wrote that is none of `inputs`.
+pub fn json_rule(inputs: &[std::path::PathBuf]) -> crate::fsio::OutFile<'_> {
+    crate::fsio::OutFile { flag: "--json", what: "a report exoleg compare --json wrote", inputs, ours: is_report_json }
+}
+
 /// The `--set` overrides that turn `base` into one paper case.
 pub fn case_sets(c: &PaperCase) -> Vec<String> {
     vec![

@@ -7,6 +7,7 @@ pub mod faults;
 pub mod firmware;
 pub mod gait_check;
 pub mod gait_test;
+pub mod journal;
 pub mod robustness;
 pub mod shard;
 mod single;

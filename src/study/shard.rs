@@ -206,11 +206,17 @@ fn check_shards(dirs: &[PathBuf]) -> Result<Vec<(PathBuf, ShardMeta)>> {
     let first_dir = dirs.first().ok_or_else(|| Error::input("merge", "SHARDS", "give the shard folders"))?;
     let first = read_meta(first_dir)?;
     let n = first.shard[1];
-    let base =
-        Scenario { source_name: first.source_name.clone(), base_dir: None, path: None, file: first.scenario.clone() };
+    let base = Scenario {
+        source_name: first.source_name.clone(),
+        base_dir: None,
+        path: None,
+        file: first.scenario.clone(),
+        external_controller: None,
+    };
     if plan_hash(&base, &first.plan)? != first.plan_hash {
         return Err(Error::input(first_dir.display().to_string(), "plan_hash", "does not match its plan and scenario"));
     }
+    check_study(first_dir, &first, &base)?;
     let mut seen: Vec<Option<usize>> = vec![None; n];
     let mut out = Vec::with_capacity(n);
     for (i, d) in dirs.iter().enumerate() {
@@ -251,6 +257,29 @@ fn check_shards(dirs: &[PathBuf]) -> Result<Vec<(PathBuf, ShardMeta)>> {
     Ok(out)
 }
 
+/// The study a shard says it belongs to must be the one its plan is: a robustness report's
+/// plan is the report's for its percent, runs and scenario (the title and the plot say so).
+fn check_study(dir: &Path, meta: &ShardMeta, base: &Scenario) -> Result<()> {
+    let bad = |m: String| Error::input(dir.display().to_string(), "study", m);
+    if meta.source_name.chars().count() > 4096 || meta.source_name.chars().any(char::is_control) {
+        return Err(Error::input(dir.display().to_string(), "source_name", "not a scenario's name"));
+    }
+    match meta.study {
+        // A campaign's plan lists every run's overrides; its layout was checked against it
+        // when the shard was read.
+        StudyKind::Sweep | StudyKind::Faults { .. } => Ok(()),
+        StudyKind::Robustness { percent } => {
+            let (_, plan) = robustness::robustness_plan(base, meta.runs, percent)
+                .map_err(|e| bad(format!("not a robustness report's ({e})")))?;
+            if plan == meta.plan {
+                Ok(())
+            } else {
+                Err(bad(format!("says robustness at {percent} %, but its plan is not that report's")))
+            }
+        }
+    }
+}
+
 /// What a merge produced.
 #[derive(Debug, Clone)]
 pub struct Merged {
@@ -269,16 +298,12 @@ pub struct Merged {
 fn open_runs(dir: &Path) -> Result<(PathBuf, std::fs::File)> {
     let p = dir.join("runs.jsonl");
     let bad = |m: String| Error::input(p.display().to_string(), "runs.jsonl", m);
-    let meta = std::fs::metadata(&p).map_err(|e| bad(e.to_string()))?;
-    if !meta.is_file() {
-        return Err(bad("not a regular file".into()));
-    }
-    let f = std::fs::File::open(&p).map_err(|e| bad(e.to_string()))?;
+    let (f, _) = crate::fsio::open_regular(&p).map_err(bad)?;
     Ok((p, f))
 }
 
 /// The next line of `r` (without its newline), at most [`MAX_LINE_BYTES`]; None at the end.
-fn bounded_line(r: &mut impl BufRead, buf: &mut Vec<u8>) -> std::io::Result<Option<()>> {
+pub(super) fn bounded_line(r: &mut impl BufRead, buf: &mut Vec<u8>) -> std::io::Result<Option<()>> {
     buf.clear();
     let n = std::io::Read::take(&mut *r, MAX_LINE_BYTES as u64 + 1).read_until(b'\n', buf)?;
     if n == 0 {
@@ -294,7 +319,7 @@ fn bounded_line(r: &mut impl BufRead, buf: &mut Vec<u8>) -> std::io::Result<Opti
 
 /// Check one line of a shard against the plan: run `i`, its overrides, its fields exactly as
 /// exoleg writes them, plausible figures.
-fn check_line(text: &[u8], i: usize, plan: &Plan) -> std::result::Result<RunLine, String> {
+pub(super) fn check_line(text: &[u8], i: usize, plan: &Plan) -> std::result::Result<RunLine, String> {
     let text = std::str::from_utf8(text).map_err(|_| "not UTF-8".to_string())?;
     let line: RunLine = serde_json::from_str(text).map_err(|e| format!("not a run line: {e}"))?;
     if line.index != i {
@@ -416,7 +441,10 @@ pub struct StudyDone {
 
 /// Run a study's plan (all of it, or the shard in `opts.shard` when `sharded`) into the folder
 /// `out`, atomically: `runs.jsonl`, and `shard.json` for a shard or the study's other outputs
-/// (`aggregate.csv`, plots) for the whole plan. The CLI and the Python package both use it.
+/// (`aggregate.csv`, plots) for the whole plan. Every run's line is kept in the study's
+/// journal as the run finishes ([`super::journal`]); with `opts.resume`, the runs an
+/// interrupted study of the same plan finished are kept and only the others made. The CLI
+/// and the Python package both use it.
 #[allow(clippy::too_many_arguments)]
 pub fn run_study_into(
     base: &Scenario,
@@ -432,15 +460,25 @@ pub fn run_study_into(
     super::sweep::validate_plan(base, plan, &res, opts)?;
     let inputs = base.resolve(&res).map(|r| r.input_paths()).unwrap_or_else(|_| base.path.iter().cloned().collect());
     let dir = OutputDir::prepare_with_inputs(out, "--out", &inputs)?;
-    let path = dir.path().join("runs.jsonl");
-    let werr = |e: std::io::Error| Error::Write { path: path.clone(), message: e.to_string() };
-    let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(werr)?);
-    let agg = super::sweep::run_plan(base, plan, &res, opts, run_outputs.then_some(dir.path()), &mut w)?;
-    w.flush().map_err(werr)?;
-    drop(w);
+    let (k, n) = opts.shard;
+    let meta = super::journal::JournalMeta {
+        format: super::journal::JOURNAL_FORMAT.into(),
+        study: study.clone(),
+        plan_hash: plan_hash(base, plan)?,
+        runs: plan.len(),
+        shard: [k, n],
+        run_outputs,
+        caller_controller: opts.controller.is_some(),
+    };
+    let journal = super::journal::Journal::open(dir.target(), meta, plan, opts.resume)?;
+    if journal.kept() > 0 {
+        eprintln!("resuming: {} finished runs kept from {}", journal.kept(), journal.dir().display());
+    }
+    let run_dir = run_outputs.then_some(journal.dir());
+    super::sweep::run_plan(base, plan, &res, opts, run_dir, &|i| journal.done(i), &|l| journal.append(l))?;
+    let agg = journal.assemble(plan, dir.path())?;
     let mut faults = None;
     let title = if sharded {
-        let (k, n) = opts.shard;
         let meta = ShardMeta {
             format: SHARD_FORMAT.into(),
             study: study.clone(),
@@ -459,5 +497,6 @@ pub fn run_study_into(
         title
     };
     dir.commit()?;
+    journal.remove();
     Ok(StudyDone { title, aggregate: agg, faults })
 }

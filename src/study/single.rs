@@ -25,8 +25,23 @@ pub struct SummaryFile<'a> {
     pub inputs: &'a [InputRecord],
     /// Design figures of the controller computed at start (sampled `dtznn`), if any.
     pub controller_design: Option<serde_json::Value>,
+    /// The controller given to the run from outside the scenario (a Python callable, a Rust
+    /// controller, a loop the caller owns), which this file cannot hold: replaying the file
+    /// is refused unless that controller is given again. Absent for the scenario's own.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub external_controller: Option<String>,
     /// The scenario as run.
     pub scenario: &'a ScenarioFile,
+}
+
+/// What `summary.json` says of a controller given to the run from outside the scenario
+/// (None: the scenario's own, which `scenario` holds).
+pub fn external_controller(source: &ControllerSource) -> Option<String> {
+    match source {
+        ControllerSource::Model => None,
+        ControllerSource::Discrete(c) => Some(c.kind().to_string()),
+        ControllerSource::External => Some("external loop".to_string()),
+    }
 }
 
 impl<'a> SummaryFile<'a> {
@@ -43,8 +58,15 @@ impl<'a> SummaryFile<'a> {
             criteria_passed: criteria.iter().all(|c| c.pass),
             inputs: &sc.inputs,
             controller_design,
+            external_controller: None,
             scenario: &sc.file,
         }
+    }
+
+    /// The same, naming the controller from outside that made the run.
+    pub fn external(mut self, controller: Option<String>) -> Self {
+        self.external_controller = controller;
+        self
     }
 }
 
@@ -95,11 +117,12 @@ pub fn run_to_memory(sc: &ResolvedScenario) -> Result<MemoryRun> {
 /// [`run_to_memory`] with the controller from `source`.
 pub fn run_to_memory_with(sc: &ResolvedScenario, source: ControllerSource) -> Result<MemoryRun> {
     let mut thinned = crate::record::EveryNth::new(crate::record::MemoryRecord::default(), sc.file.output.every_steps);
+    let external = external_controller(&source);
     let sim = Simulation::build(sc.model.clone(), source)?;
     let (summary, design) = crate::session::run_simulation(sim, &mut thinned)?;
     let rec = thinned.into_inner();
     let criteria = check_criteria(&sc.file.criteria, &summary);
-    let file = SummaryFile::new(sc, &summary, &criteria, design);
+    let file = SummaryFile::new(sc, &summary, &criteria, design).external(external);
     let summary_json =
         serde_json::to_value(&file).map_err(|e| Error::Write { path: "summary".into(), message: e.to_string() })?;
     let columns = rec.layout.names();
@@ -129,8 +152,8 @@ pub fn run_into_with(
     title: &str,
     extra: Option<&mut dyn RecordSink>,
 ) -> Result<RunReport> {
+    let mut files = RunFiles::create(dir, &sc.file.output)?.external(external_controller(&source));
     let sim = Simulation::build(sc.model.clone(), source)?;
-    let mut files = RunFiles::create(dir, &sc.file.output)?;
     let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut files];
     if let Some(e) = extra {
         sinks.push(e);
@@ -145,6 +168,7 @@ pub struct RunFiles {
     dir: std::path::PathBuf,
     csv: crate::record::EveryNth<crate::output::TimeSeriesSink>,
     plots: PlotBuffer,
+    external: Option<String>,
 }
 
 impl RunFiles {
@@ -156,7 +180,14 @@ impl RunFiles {
             dir: dir.to_path_buf(),
             csv: crate::record::EveryNth::new(crate::output::TimeSeriesSink::create(dir, parquet)?, output.every_steps),
             plots: PlotBuffer::new(),
+            external: None,
         })
+    }
+
+    /// Name the controller from outside the scenario that makes the run ([`external_controller`]).
+    pub fn external(mut self, controller: Option<String>) -> Self {
+        self.external = controller;
+        self
     }
 
     /// Close `timeseries.csv`, write `summary.json` (figures, criteria, inputs, the scenario)
@@ -170,7 +201,7 @@ impl RunFiles {
     ) -> Result<RunReport> {
         self.csv.into_inner().finish()?;
         let criteria = check_criteria(&sc.file.criteria, &summary);
-        let file = SummaryFile::new(sc, &summary, &criteria, design);
+        let file = SummaryFile::new(sc, &summary, &criteria, design).external(self.external.clone());
         write_json(&self.dir.join("summary.json"), &file)?;
         force_tracking_png(&self.dir.join("force_tracking.png"), &self.plots, title)?;
         if self.plots.has_knee() {

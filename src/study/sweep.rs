@@ -14,7 +14,6 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
-use std::io::Write;
 use std::path::Path;
 
 /// Most runs a sweep, grid or robustness report may have (`--monte-carlo`, `--samples`, the
@@ -300,6 +299,9 @@ pub struct RunOptions {
     pub controller: Option<std::sync::Arc<ControllerFactory>>,
     /// Set by the caller to stop the study (its runs check it as they go).
     pub cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// Keep the finished runs of an interrupted study of the same plan into the same folder
+    /// and make only the missing ones (`--resume`).
+    pub resume: bool,
 }
 
 /// The number of worker threads for `runs` runs.
@@ -374,10 +376,17 @@ fn run_one(
     opts: &RunOptions,
     run_dir: Option<&Path>,
 ) -> Result<RunLine> {
+    if opts.cancel.as_ref().is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed)) {
+        return Err(Error::Interrupted);
+    }
     let sets = plan.sets(i);
     let sc = base.with_sets(&sets)?.resolve(res)?;
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| simulate(&sc, i, opts, run_dir)))
         .unwrap_or_else(|p| Err(Error::Usage(format!("internal error (a panic): {}", panic_message(&p)))));
+    // A run stopped because the study is being stopped is no finished run: it has no line.
+    if opts.cancel.as_ref().is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed)) && result.is_err() {
+        return Err(Error::Interrupted);
+    }
     Ok(match result {
         Err(Error::Interrupted) => return Err(Error::Interrupted),
         Ok(summary) => {
@@ -457,46 +466,38 @@ impl Aggregate {
     }
 }
 
-/// Run the plan (or this shard of it) with `opts`; each line goes to `out` (JSON lines) in run
-/// order. `run_dir`: also write every run's outputs to `run_dir/run_NNNN`.
+/// Run the plan (or this shard of it) with `opts`, leaving out the runs `skip` names (a
+/// resumed study's finished runs); each run's line goes to `on_line` as soon as the run ends
+/// (from the worker thread that ran it, so in the order the runs finish). `run_dir`: also
+/// write every run's outputs to `run_dir/run_NNNN`. Returns the number of runs made.
 pub fn run_plan(
     base: &Scenario,
     plan: &Plan,
     res: &Resources,
     opts: &RunOptions,
     run_dir: Option<&Path>,
-    out: &mut dyn Write,
-) -> Result<Aggregate> {
+    skip: &(dyn Fn(usize) -> bool + Sync),
+    on_line: &(dyn Fn(&RunLine) -> Result<()> + Sync),
+) -> Result<usize> {
     use rayon::prelude::*;
-    let idx: Vec<usize> = shard_indices(plan.len(), opts.shard).collect();
+    let idx: Vec<usize> = shard_indices(plan.len(), opts.shard).filter(|&i| !skip(i)).collect();
     let pool = pool(opts.jobs, idx.len())?;
     let bar = progress_bar(opts.progress && idx.len() > 1, idx.len());
-    let mut agg = Aggregate::default();
     for chunk in idx.chunks(CHUNK) {
         if opts.cancel.as_ref().is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed)) {
             return Err(Error::Interrupted);
         }
-        let lines: Vec<RunLine> = pool.install(|| {
-            chunk
-                .par_iter()
-                .map(|&i| {
-                    let l = run_one(base, plan, i, res, opts, run_dir);
-                    bar.inc(1);
-                    l
-                })
-                .collect::<Result<_>>()
+        pool.install(|| {
+            chunk.par_iter().try_for_each(|&i| {
+                let l = run_one(base, plan, i, res, opts, run_dir)?;
+                on_line(&l)?;
+                bar.inc(1);
+                Ok(())
+            })
         })?;
-        for l in &lines {
-            agg.add(l);
-            let mut text = serde_json::to_string(l)
-                .map_err(|e| Error::Write { path: "runs.jsonl".into(), message: e.to_string() })?;
-            text.push('\n');
-            out.write_all(text.as_bytes())
-                .map_err(|e| Error::Write { path: "runs.jsonl".into(), message: e.to_string() })?;
-        }
     }
     bar.finish_and_clear();
-    Ok(agg)
+    Ok(idx.len())
 }
 
 /// A progress bar over `n` runs on stderr (hidden unless `show`).

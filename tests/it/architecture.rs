@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 /// below its own.
 const LAYERS: [&[&str]; 11] = [
     &["error", "integrator", "faults"],
-    &["record", "hydraulics", "sensors"],
+    &["record", "hydraulics", "sensors", "fsio"],
     &["disturbance", "leg"],
     &["reference"],
     &["human", "control", "metrics"],

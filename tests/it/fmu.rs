@@ -27,13 +27,29 @@ struct Unpacked {
     guid: String,
 }
 
-/// `exoleg fmu SCENARIO --set ..`, unzipped. The library packed is a stand-in (this test
-/// binary's exoleg executable): the Rust side never loads it.
+/// A stand-in for the FMU library (the Rust side never loads it): a shared library that
+/// carries the `exoleg-fmu` crate's marker for this version, as `exoleg fmu` requires.
+pub fn stand_in_library() -> &'static Path {
+    static LIB: std::sync::OnceLock<(tempfile::TempDir, PathBuf)> = std::sync::OnceLock::new();
+    let (_, lib) = LIB.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let src = dir.path().join("stand_in.c");
+        let marker = format!("exoleg-fmu-library/{}/fmi2-cs", env!("CARGO_PKG_VERSION"));
+        std::fs::write(&src, format!("const char *exoleg_fmu_library_id(void) {{ return \"{marker}\"; }}\n")).unwrap();
+        let lib = dir.path().join("libexoleg_fmu.so");
+        let o = Command::new("cc").args(["-O2", "-fPIC", "-shared", "-o"]).arg(&lib).arg(&src).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (dir, lib)
+    });
+    lib
+}
+
+/// `exoleg fmu SCENARIO --set ..`, unzipped, with the [`stand_in_library`].
 fn pack(scenario: &str, sets: &[&str]) -> Unpacked {
     let dir = tempfile::tempdir().unwrap();
     let fmu = dir.path().join("plant.fmu");
     let mut args = vec!["fmu".to_string(), scenario.to_string(), "--out".into(), fmu.display().to_string()];
-    args.extend(["--library".to_string(), env!("CARGO_BIN_EXE_exoleg").to_string()]);
+    args.extend(["--library".to_string(), stand_in_library().display().to_string()]);
     for s in sets {
         args.extend(["--set".to_string(), s.to_string()]);
     }
@@ -285,4 +301,17 @@ fn fmu_without_library_is_a_usage_error() {
     assert!(err.contains("missing.so"), "{err}");
     assert!(err.contains("cargo build --release -p exoleg-fmu"), "{err}");
     assert!(!out.exists());
+}
+
+/// A gait FMU takes a stop time shorter than its scenario's `metrics.settle_s` (1.1 s on
+/// `gait_walk.toml`): an FMU has no summary for the settling window to shape.
+#[test]
+fn a_gait_fmu_takes_a_stop_time_shorter_than_its_settling_window() {
+    let u = pack("assets/scenarios/gait_walk.toml", &["controller.sample_period_s=0.001"]);
+    let (mut slave, _) = Slave::instantiate(&u.resources, &u.guid).unwrap();
+    slave.setup_experiment(0.0, Some(0.5)).unwrap();
+    slave.enter_initialization_mode().unwrap();
+    slave.exit_initialization_mode().unwrap();
+    slave.set(VarType::Real, &[1000], &[0.0]).unwrap();
+    slave.do_step(0.0, 0.001).unwrap();
 }

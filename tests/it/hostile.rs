@@ -124,6 +124,11 @@ fn shard_json_corpus() {
 }
 
 #[test]
+fn journal_corpus() {
+    replay("journal", |text| exoleg::study::journal::fuzz_journal(text.as_bytes()).map(|_| ()));
+}
+
+#[test]
 fn set_flag_corpus() {
     replay("set_flag", exoleg::scenario::fuzz_set_flags);
 }

@@ -73,7 +73,7 @@ fn loaded_walking_reproduces_the_stance_and_ground_reaction_of_the_data() {
         c.peak_ground_reaction_n,
         d.data_peak_ground_reaction_n
     );
-    assert!(c.not_walking.is_empty(), "{:?}", c.not_walking);
+    assert_eq!(c.not_walking, Some(vec![]));
     assert!(c.max_contact_penetration_m < 0.025, "penetration {}", c.max_contact_penetration_m);
     assert!((d.strides_averaged - 5.0).abs() < 0.01, "strides {}", d.strides_averaged);
     let (ks, kw) = (c.knee_rms_error_stance_deg.unwrap(), c.knee_rms_error_swing_deg.unwrap());

@@ -92,6 +92,28 @@ def _plain(v: Any, key: str) -> Any:
     raise ScenarioError(f"overrides: {key}: cannot use {v!r} ({type(v).__name__}) as a scenario value")
 
 
+def _count(name: str, v: Any, low: int = 0, high: int = 2**63 - 1) -> int:
+    """A whole number argument (``jobs``, ``monte_carlo``, ``samples``, a seed, a shard) checked
+    here: a negative, fractional or huge one is a ``ScenarioError`` naming it, never an
+    ``OverflowError`` from the native layer."""
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, bool) or not isinstance(v, int):
+        if isinstance(v, float) and v.is_integer():
+            v = int(v)
+        else:
+            raise ScenarioError(f"{name}: expected a whole number, got {v!r}")
+    if not low <= v <= high:
+        raise ScenarioError(f"{name}: {v} is out of range ({low}..={high})")
+    return v
+
+
+def _out(out: Union[str, os.PathLike]) -> str:
+    """An output path made absolute now (nothing a run loads later, such as a plugin changing
+    the working directory, moves where its outputs go)."""
+    return os.path.abspath(os.fspath(out))
+
+
 def _scenario(scenario: ScenarioLike) -> Dict[str, Any]:
     """The scenario arguments of the native layer: a path, TOML text, or a dict as JSON data.
 
@@ -173,7 +195,7 @@ def run(
     ``DivergedError`` when the run diverges or its controller stops it; ``ControllerError``
     when the controller raises (its exception is the cause) or returns no usable command.
     """
-    o = None if out is None else os.fspath(out)
+    o = None if out is None else _out(out)
     return _run(_native.run(**_args(scenario, overrides), controller=controller, out=o))
 
 
@@ -206,13 +228,13 @@ class Simulation:
         *,
         out: Optional[Union[str, os.PathLike]] = None,
     ) -> None:
-        o = None if out is None else os.fspath(out)
+        o = None if out is None else _out(out)
         self._sim = _native.Simulation(**_args(scenario, overrides), out=o)
         self.info: Dict[str, Any] = json.loads(self._sim.info_json)
 
     def reset(self, seed: Optional[int] = None) -> Obs:
         """Start again from t = 0 (with ``seed`` in place of the scenario's); the first readings."""
-        return self._sim.reset(None if seed is None else int(seed))
+        return self._sim.reset(None if seed is None else _count("seed", seed, 0, 2**64 - 1))
 
     def step(self, command: Union[float, Mapping[str, float]]) -> Obs:
         """Hold ``command`` for one sample period; the readings of the next sample."""
@@ -299,7 +321,8 @@ def _shard(shard) -> Optional[Tuple[int, int]]:
         return None
     if not (isinstance(shard, (tuple, list)) and len(shard) == 2):
         raise ScenarioError(f"shard: expected (K, N), got {shard!r}")
-    return (int(shard[0]), int(shard[1]))
+    n = _count("shard N", shard[1], 1, 10**6)
+    return (_count("shard K", shard[0], 0, n - 1), n)
 
 
 def sweep(
@@ -313,6 +336,7 @@ def sweep(
     jobs: int = 0,
     shard: Optional[Tuple[int, int]] = None,
     controller: Optional[Controller] = None,
+    resume: bool = False,
 ) -> Study:
     """Run many variations of a scenario in parallel, like ``exoleg sweep``.
 
@@ -322,16 +346,20 @@ def sweep(
     folder for :func:`merge`. ``jobs``: worker threads (0 = all cores). ``controller``: your
     Python controller for every run (as in :func:`run`); the runs then go one after the other
     in this process (``jobs`` is 1), and a run whose controller fails is a failed line.
+    Every run's line is kept as it finishes; ``resume=True`` keeps the runs an interrupted
+    study of the same plan into the same ``out`` finished and makes only the others (as the
+    CLI's ``--resume``).
     """
     title, agg = _native.study(
         "sweep",
-        os.fspath(out),
+        _out(out),
         **_args(scenario, overrides),
         **_study_args(grid, vary),
-        monte_carlo=monte_carlo,
-        jobs=int(jobs),
+        monte_carlo=None if monte_carlo is None else _count("monte_carlo", monte_carlo, 1, 10**6),
+        jobs=_count("jobs", jobs, 0, 2**32),
         shard_k_n=_shard(shard),
         controller=controller,
+        resume=bool(resume),
     )
     return Study(title, agg, os.fspath(out))
 
@@ -346,19 +374,21 @@ def robustness(
     jobs: int = 0,
     shard: Optional[Tuple[int, int]] = None,
     controller: Optional[Controller] = None,
+    resume: bool = False,
 ) -> Study:
     """The robustness report, like ``exoleg robustness`` (the plant's parameters +-``percent``
     %, the controller keeping its nominal model, the paper's Table 2 disturbances).
-    ``controller``: as in :func:`sweep`."""
+    ``controller``, ``resume``: as in :func:`sweep`."""
     title, agg = _native.study(
         "robustness",
-        os.fspath(out),
+        _out(out),
         **_args(scenario, overrides),
         percent=float(percent),
-        samples=int(samples),
-        jobs=int(jobs),
+        samples=_count("samples", samples, 1, 10**6),
+        jobs=_count("jobs", jobs, 0, 2**32),
         shard_k_n=_shard(shard),
         controller=controller,
+        resume=bool(resume),
     )
     return Study(title, agg, os.fspath(out))
 
@@ -395,14 +425,15 @@ def plan(
     overrides: Optional[Mapping[str, Any]] = None,
 ) -> Plan:
     """The expanded runs of a sweep (index and overrides of each), without running them."""
-    return Plan(_native.plan("sweep", **_args(scenario, overrides), **_study_args(grid, vary), monte_carlo=monte_carlo))
+    n = None if monte_carlo is None else _count("monte_carlo", monte_carlo, 1, 10**6)
+    return Plan(_native.plan("sweep", **_args(scenario, overrides), **_study_args(grid, vary), monte_carlo=n))
 
 
 def merge(shards: Sequence[Union[str, os.PathLike]], out: Union[str, os.PathLike]) -> Study:
     """Merge shard folders into what the unsharded study writes (``exoleg merge``)."""
     if isinstance(shards, (str, bytes, os.PathLike)):
         raise ScenarioError("merge: expected a list of shard folders")
-    title, agg = _native.merge([os.fspath(s) for s in shards], os.fspath(out))
+    title, agg = _native.merge([os.fspath(s) for s in shards], _out(out))
     return Study(title, agg, os.fspath(out))
 
 

@@ -1,7 +1,7 @@
 """Type stubs of exoleg (units: SI, in the names)."""
 
 import os
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Callable, Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -40,6 +40,8 @@ def sweep(
     out: Union[str, os.PathLike[str]] = ...,
     jobs: int = ...,
     shard: Optional[Tuple[int, int]] = ...,
+    controller: Optional[Callable[[Any], Any]] = ...,
+    resume: bool = ...,
 ) -> Study: ...
 def robustness(
     scenario: ScenarioLike,
@@ -50,6 +52,8 @@ def robustness(
     out: Union[str, os.PathLike[str]] = ...,
     jobs: int = ...,
     shard: Optional[Tuple[int, int]] = ...,
+    controller: Optional[Callable[[Any], Any]] = ...,
+    resume: bool = ...,
 ) -> Study: ...
 def plan(
     scenario: ScenarioLike,

@@ -14,7 +14,11 @@
   (diverges, or the command is not finite): then ``info["failure"]`` holds the message and the
   reward is that of the last state. ``truncated`` is never set (add a TimeLimit wrapper).
 - ``reset(seed=...)`` starts again with that seed for the run's random elements (sensor
-  noise, random disturbances); the same seed gives the same episode.
+  noise, random disturbances); the same seed gives the same episode. ``reset()`` without a
+  seed draws the episode's seed from the environment's generator (``np_random``, seeded by
+  the last ``reset(seed=...)``), so successive episodes differ, as Gymnasium expects.
+- An action of any other shape than the action space's (one number: shape ``(1,)``, or a
+  scalar) raises ``ValueError``; it is never cut to its first element.
 - The action space is ``[-limit, limit]`` with ``actuator.valve_command_limit``, or [-1, 1]
   when the scenario sets none (k_s * 1 m of spool: far beyond any useful command).
 """
@@ -57,12 +61,17 @@ class ExolegEnv(gymnasium.Env):
 
     def reset(self, *, seed: Optional[int] = None, options: Optional[Dict[str, Any]] = None) -> Tuple[np.ndarray, Dict[str, Any]]:
         super().reset(seed=seed)
+        if seed is None:
+            seed = int(self.np_random.integers(0, 2**63 - 1))
         obs = self._sim.reset(seed)
         self._failed = False
         return self._obs(obs), {"t_s": self._sim.t_s}
 
     def step(self, action: Any) -> Tuple[np.ndarray, float, bool, bool, Dict[str, Any]]:
-        u = float(np.asarray(action, dtype=np.float64).reshape(-1)[0])
+        a = np.asarray(action, dtype=np.float64)
+        if a.size != 1 or a.ndim > 1:
+            raise ValueError(f"action: expected one valve command (shape (1,) or a scalar), got shape {a.shape}")
+        u = float(a.reshape(-1)[0])
         info: Dict[str, Any] = {}
         try:
             obs = self._sim.step(u)

@@ -193,8 +193,10 @@ impl Figures {
         if d.knee_moment_stance_correlation.is_nan() || d.knee_moment_stance_correlation < t.min_knee_moment_r {
             why.push(format!("knee moment r {:.3} < {}", d.knee_moment_stance_correlation, t.min_knee_moment_r));
         }
-        if !c.not_walking.is_empty() {
-            why.push(format!("not walking: {}", c.not_walking.join("; ")));
+        match &c.not_walking {
+            Some(flags) if !flags.is_empty() => why.push(format!("not walking: {}", flags.join("; "))),
+            Some(_) => {}
+            None => why.push("not walking: not evaluated (no row after the run-in)".into()),
         }
         if t.require_peaks && self.extensor_timing_ok(t) == Some(false) {
             why.push("extensor peak timing".into());

@@ -141,7 +141,7 @@ impl Report {
             check(Some(f.misses(t).is_empty())).into(),
             check(f.extensor_timing_ok(t)).into(),
             check(f.flexor_size_ok(t)).into(),
-            field(&c.not_walking.join("; ")),
+            field(&c.not_walking.as_ref().map_or_else(|| "not evaluated".to_string(), |f| f.join("; "))),
             field(&f.misses(t).join("; ")),
         ]
     }
