@@ -230,7 +230,7 @@ fn controller_info(
 /// `controller`, every run is made with it, one run after the other in this process. Returns
 /// the title line and `aggregate.csv`'s text (or, with `plan_only`, the plan's JSON lines).
 #[pyfunction]
-#[pyo3(signature = (kind, out, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, jobs=0, shard_k_n=None, controller=None, resume=false))]
+#[pyo3(signature = (kind, out, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, jobs=0, shard_k_n=None, controller=None, resume=false, matrix=None, observe_strides=exoleg::study::faults::DEFAULT_OBSERVE_STRIDES))]
 #[allow(clippy::too_many_arguments)]
 fn study(
     py: Python<'_>,
@@ -249,19 +249,22 @@ fn study(
     shard_k_n: Option<(usize, usize)>,
     controller: Option<PyObject>,
     resume: bool,
+    matrix: Option<String>,
+    observe_strides: f64,
 ) -> PyResult<(String, String)> {
     let base = py.allow_threads(|| load(path, toml_text, scenario_json, overrides_json)).map_err(py_err)?;
     if controller.is_none() {
         base.own_controller().map_err(py_err)?;
     }
-    let (base_run, plan, study_kind) =
-        study_plan(&kind, &base, &grids, monte_carlo, &vary, percent, samples).map_err(py_err)?;
-    if let Some((k, n)) = shard_k_n {
-        shard::parse_shard(&format!("{k}/{n}")).map_err(py_err)?;
-    }
     let cancel = Arc::new(AtomicBool::new(false));
     let stop = controller::StudyStop { cancel: cancel.clone(), raised: Arc::new(std::sync::Mutex::new(None)) };
     let factory = controller.map(|c| controller::factory(c, stop.clone()));
+    let args = StudyArgs { grids, monte_carlo, vary, percent, samples, matrix, observe_strides };
+    let (base_run, plan, study_kind) =
+        py.allow_threads(|| study_plan(&kind, &base, &args, factory.as_deref())).map_err(py_err)?;
+    if let Some((k, n)) = shard_k_n {
+        shard::parse_shard(&format!("{k}/{n}")).map_err(py_err)?;
+    }
     let opts = sweep::RunOptions {
         // A Python controller runs in this process, one run after the other.
         jobs: if factory.is_some() { 1 } else { jobs },
@@ -293,23 +296,45 @@ fn study(
     }
 }
 
-/// The plan of a sweep or robustness study, and the scenario its runs start from.
+/// What a study's plan is made from (each kind reads its own).
+struct StudyArgs {
+    grids: Vec<String>,
+    monte_carlo: Option<usize>,
+    vary: Vec<String>,
+    percent: f64,
+    samples: usize,
+    /// A fault campaign's matrix file (None: the default for the scenario).
+    matrix: Option<String>,
+    observe_strides: f64,
+}
+
+/// The plan of a sweep, robustness or fault-campaign study, and the scenario its runs start
+/// from. A campaign's notes (the valve travel it gives) are printed to standard error.
 fn study_plan(
     kind: &str,
     base: &Scenario,
-    grids: &[String],
-    monte_carlo: Option<usize>,
-    vary: &[String],
-    percent: f64,
-    samples: usize,
+    a: &StudyArgs,
+    controller: Option<&sweep::ControllerFactory>,
 ) -> Result<(Scenario, sweep::Plan, shard::StudyKind), Error> {
     match kind {
-        "sweep" => Ok((base.clone(), sweep::plan_from_args(base, grids, monte_carlo, vary)?, shard::StudyKind::Sweep)),
-        "robustness" => {
-            let (pinned, plan) = robustness::robustness_plan(base, samples, percent)?;
-            Ok((pinned, plan, shard::StudyKind::Robustness { percent }))
+        "sweep" => {
+            let plan = sweep::plan_from_args(base, &a.grids, a.monte_carlo, &a.vary)?;
+            Ok((base.clone(), plan, shard::StudyKind::Sweep))
         }
-        other => Err(Error::input("exoleg.study", "kind", format!("`{other}`: sweep or robustness"))),
+        "robustness" => {
+            let (pinned, plan) = robustness::robustness_plan(base, a.samples, a.percent)?;
+            Ok((pinned, plan, shard::StudyKind::Robustness { percent: a.percent }))
+        }
+        "faults" => {
+            let matrix = a.matrix.as_deref().map(|p| exoleg::study::faults::read_matrix(Path::new(p))).transpose()?;
+            let res = exoleg::scenario::Resources::new();
+            let c = exoleg::study::faults::campaign(base, matrix, a.observe_strides, controller, &res)?;
+            for n in &c.notes {
+                eprintln!("note: {n}");
+            }
+            Ok((c.base, c.plan, shard::StudyKind::Faults { layout: c.layout }))
+        }
+        other => Err(Error::input("exoleg.study", "kind", format!("`{other}`: sweep, robustness or faults"))),
     }
 }
 
@@ -337,7 +362,7 @@ impl Plan {
 
 /// The plan of a study, without running it.
 #[pyfunction]
-#[pyo3(signature = (kind, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64))]
+#[pyo3(signature = (kind, path=None, toml_text=None, scenario_json=None, overrides_json=None, grids=Vec::new(), monte_carlo=None, vary=Vec::new(), percent=20.0, samples=64, matrix=None, observe_strides=exoleg::study::faults::DEFAULT_OBSERVE_STRIDES))]
 #[allow(clippy::too_many_arguments)]
 fn plan(
     py: Python<'_>,
@@ -351,10 +376,13 @@ fn plan(
     vary: Vec<String>,
     percent: f64,
     samples: usize,
+    matrix: Option<String>,
+    observe_strides: f64,
 ) -> PyResult<Plan> {
     py.allow_threads(|| {
         let base = load(path, toml_text, scenario_json, overrides_json)?;
-        study_plan(&kind, &base, &grids, monte_carlo, &vary, percent, samples).map(|(_, plan, _)| Plan { plan })
+        let args = StudyArgs { grids, monte_carlo, vary, percent, samples, matrix, observe_strides };
+        study_plan(&kind, &base, &args, None).map(|(_, plan, _)| Plan { plan })
     })
     .map_err(py_err)
 }

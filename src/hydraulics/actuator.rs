@@ -32,8 +32,10 @@ pub enum Failsafe {
     /// lock, as tight as the valve's and the cylinder's leakage allow).
     #[default]
     Locked,
-    /// A normally open bypass valve connects the chambers: the knee is free but for the seal
-    /// friction and the bypass's flow resistance.
+    /// A normally open bypass valve connects both chambers to the return line (a single-rod
+    /// cylinder needs the tank for its rod's volume; a bypass across the piston alone would
+    /// leave the rod area's force at the trapped pressure): the knee is free but for the seal
+    /// friction and the valve's flow resistance (`failsafe_bypass_area_m2`).
     Free,
 }
 

@@ -56,6 +56,11 @@ pub struct ValveFaults {
     /// A bypass across the piston: `k` of `Q = k sign(dp) sqrt(|dp|)` (m^3/(s Pa^0.5), `C_d A
     /// sqrt(2/rho)`), 0: none.
     pub bypass_k: f64,
+    /// A vent of both chambers to the return line (the fail-safe bypass valve of a `free`
+    /// failsafe): `k` of each chamber's orifice, as `bypass_k`; 0: none. The two-chamber model
+    /// drains each chamber toward the return pressure; the linear model, which has no mean
+    /// pressure, relaxes its load pressure `F_L / A_eff` through the orifice.
+    pub vent_k: f64,
     /// The supply pressure's fraction left (1: normal).
     pub supply_factor: f64,
     /// No power: the valve's command is 0.
@@ -64,8 +69,14 @@ pub struct ValveFaults {
 
 impl ValveFaults {
     /// No fault.
-    pub const NONE: ValveFaults =
-        ValveFaults { spool_stuck: false, spool_tau_factor: 1.0, bypass_k: 0.0, supply_factor: 1.0, power_off: false };
+    pub const NONE: ValveFaults = ValveFaults {
+        spool_stuck: false,
+        spool_tau_factor: 1.0,
+        bypass_k: 0.0,
+        vent_k: 0.0,
+        supply_factor: 1.0,
+        power_off: false,
+    };
 
     /// Whether nothing is faulty.
     pub fn is_none(&self) -> bool {
@@ -295,21 +306,22 @@ impl Cylinder {
         inp: &ForceChannelInput,
         f: &ValveFaults,
     ) -> ForceRates {
-        if f.bypass_k == 0.0 && f.supply_factor == 1.0 {
+        if f.bypass_k == 0.0 && f.vent_k == 0.0 && f.supply_factor == 1.0 {
             return self.rates(h, piston, inp);
         }
         let (pa, pb) = self.pressures_pa(h);
         let q = bypass_flow_m3_s(f.bypass_k, pa - pb);
+        let sum = self.areas_m2.0 + self.areas_m2.1;
         let (raw, mean) = match self.chambers_with(f) {
             None => {
                 let c = &self.coeffs;
                 let x = h.channel();
-                let sum = self.areas_m2.0 + self.areas_m2.1;
+                let vent = bypass_flow_m3_s(f.vent_k, self.load_pressure_pa(h));
                 let r = c.n1 * f.supply_factor.sqrt() * x.spool_m - c.n2 * inp.piston_velocity_m_s - c.n3 * x.force_n
                     + c.n4
                     + inp.force_rate_dist_n_per_s
                     + x.accel_dist_n_per_s
-                    - c.n2 * 2.0 / sum * q;
+                    - c.n2 * 2.0 / sum * (q + vent);
                 (r, 0.0)
             }
             Some(tc) => {
@@ -318,7 +330,9 @@ impl Cylinder {
                 let (mut d1, mut d2) =
                     tc.pressure_rates(p1, p2, h.spool_m, piston.position_m, piston.velocity_m_s, extra);
                 let (l1, l2) = tc.transfer_rates(piston.position_m, q);
-                (d1, d2) = (d1 + l1, d2 + l2);
+                let vent = |p: f64| bypass_flow_m3_s(f.vent_k, p - tc.p_r);
+                let (v1, v2) = tc.drain_rates(piston.position_m, vent(p1), vent(p2));
+                (d1, d2) = (d1 + l1 + v1, d2 + l2 + v2);
                 let (df, _) = tc.force_and_mean(d1, d2);
                 (df, 0.5 * (d1 + d2))
             }
@@ -386,11 +400,11 @@ impl Cylinder {
     /// now: at most `k / sqrt(dp_t)`) and a slow spool.
     pub fn local_stiffness_with(&self, h: &HydraulicState, piston_position_m: f64, f: &ValveFaults) -> (f64, f64) {
         let (mut rate, k) = self.local_stiffness(h, piston_position_m);
-        if f.bypass_k > 0.0 {
+        if f.bypass_k > 0.0 || f.vent_k > 0.0 {
             // d(dp)/dF for the linear model's pressures: 2 / (A1 + A2); the two-chamber
             // chambers' pressures move with their own volumes, of the same order.
             let sum = self.areas_m2.0 + self.areas_m2.1;
-            let slope = f.bypass_k / BYPASS_TRANSITION_PA.sqrt();
+            let slope = (f.bypass_k + f.vent_k) / BYPASS_TRANSITION_PA.sqrt();
             rate = rate.max(self.coeffs.n2 * 2.0 / sum * slope * 2.0 / sum);
         }
         (rate, k)

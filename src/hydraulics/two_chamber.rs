@@ -169,6 +169,14 @@ impl TwoChamber {
         (-self.beta / v1 * q, self.beta / v2 * q)
     }
 
+    /// Pressure rates (Pa/s) of flows `q1`, `q2` (m^3/s) out of chambers 1 and 2 to the
+    /// return line at piston position `xc` (a vent).
+    pub fn drain_rates(&self, xc: f64, q1: f64, q2: f64) -> (f64, f64) {
+        let v1 = (self.v1_0 + self.a1 * xc).max(0.05 * self.v1_0);
+        let v2 = (self.v2_0 - self.a2 * xc).max(0.05 * self.v2_0);
+        (-self.beta / v1 * q1, -self.beta / v2 * q2)
+    }
+
     /// Clamp pressures to [p_r, p_s].
     pub fn clamp(&self, p1: f64, p2: f64) -> (f64, f64) {
         (p1.clamp(self.p_r, self.p_s), p2.clamp(self.p_r, self.p_s))

@@ -89,9 +89,24 @@ pub(super) fn apply_set(table: &mut toml::Table, set: &str) -> Result<()> {
     apply_value(table, key, value)
 }
 
+/// Keys of which a scenario gives one: an override of either replaces the other (the gait is
+/// the trial's file or the built-in trial; a file giving both is refused by validation).
+const ONE_OF: &[(&str, &str, &str)] = &[("reference", "gait_file", "gait_trial")];
+
 /// Set the dotted `key` to `value` (a table merges into the table it overrides): an override
-/// given as data (the Python package), never parsed from text.
+/// given as data (the Python package), never parsed from text. An override of one key of an
+/// [`ONE_OF`] pair removes the other.
 pub(super) fn apply_value(table: &mut toml::Table, key: &str, value: toml::Value) -> Result<()> {
+    for (section, a, b) in ONE_OF {
+        let other = match key.strip_prefix(section).and_then(|k| k.strip_prefix('.')) {
+            Some(k) if k == *a => b,
+            Some(k) if k == *b => a,
+            _ => continue,
+        };
+        if let Some(toml::Value::Table(t)) = table.get_mut(*section) {
+            t.remove(*other);
+        }
+    }
     let parts: Vec<&str> = key.split('.').collect();
     if parts.iter().any(|p| p.trim().is_empty()) {
         return Err(Error::input("--set", key, "empty key segment"));

@@ -96,7 +96,7 @@ impl Simulation {
                 A::PowerLoss => {
                     v.power_off = true;
                     if act.failsafe == Failsafe::Free {
-                        v.bypass_k += bypass;
+                        v.vent_k = bypass;
                     }
                 }
             }
@@ -105,7 +105,7 @@ impl Simulation {
         if self.faults.stopped.is_some() {
             v.power_off = true;
             if act.failsafe == Failsafe::Free {
-                v.bypass_k += bypass;
+                v.vent_k = bypass;
             }
         }
         self.held.valve = v;

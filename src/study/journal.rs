@@ -21,7 +21,7 @@
 //! another plan is refused with `--resume` (exit 2) and replaced without it; a last line cut
 //! short by a kill is dropped (its run is made again).
 
-use super::shard::{bounded_line, check_line, StudyKind};
+use super::lines::{bounded_line, check_line, StudyKind};
 use super::sweep::{Aggregate, Plan, RunLine};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -43,7 +43,7 @@ pub struct JournalMeta {
     pub format: String,
     /// The study.
     pub study: StudyKind,
-    /// SHA-256 of the base scenario and every run's overrides ([`super::shard::plan_hash`]).
+    /// SHA-256 of the base scenario and every run's overrides (the shard module's `plan_hash`).
     pub plan_hash: String,
     /// Runs in the whole plan.
     pub runs: usize,

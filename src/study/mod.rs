@@ -8,6 +8,7 @@ pub mod firmware;
 pub mod gait_check;
 pub mod gait_test;
 pub mod journal;
+pub mod lines;
 pub mod robustness;
 pub mod shard;
 mod single;

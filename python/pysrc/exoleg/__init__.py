@@ -38,6 +38,7 @@ from ._native import ControllerError, DivergedError, ExoError, Obs, ScenarioErro
 
 __all__ = [
     "run",
+    "faults",
     "sweep",
     "robustness",
     "merge",
@@ -385,6 +386,40 @@ def robustness(
         **_args(scenario, overrides),
         percent=float(percent),
         samples=_count("samples", samples, 1, 10**6),
+        jobs=_count("jobs", jobs, 0, 2**32),
+        shard_k_n=_shard(shard),
+        controller=controller,
+        resume=bool(resume),
+    )
+    return Study(title, agg, os.fspath(out))
+
+
+def faults(
+    scenario: ScenarioLike,
+    *,
+    matrix: Union[str, os.PathLike, None] = None,
+    observe_strides: float = 2.0,
+    overrides: Optional[Mapping[str, Any]] = None,
+    out: Union[str, os.PathLike] = "out/faults",
+    jobs: int = 0,
+    shard: Optional[Tuple[int, int]] = None,
+    controller: Optional[Controller] = None,
+    resume: bool = False,
+) -> Study:
+    """The fault campaign, like ``exoleg faults``: every failure mode of ``matrix`` (a TOML
+    file; default: the modes that apply to the scenario, see ``exoleg faults --print-matrix``)
+    at every onset and severity, each run scored by the scenario's ``[safety]`` limits; writes
+    ``faults.csv``, ``fmea.csv``, ``fmea.md`` and ``faults.png`` into ``out`` (or a shard
+    folder with ``shard``). ``controller``: your Python controller for every run (it may read
+    the device's channels; a campaign then also faults ``heel_force_n`` and
+    ``shank_gyro_y_rad_s``). ``jobs``, ``resume``: as in :func:`sweep`. Unlike the CLI, a run
+    that breaks a safety criterion raises nothing: read ``fmea.md`` or ``faults.csv``."""
+    title, agg = _native.study(
+        "faults",
+        _out(out),
+        **_args(scenario, overrides),
+        matrix=None if matrix is None else os.path.abspath(os.fspath(matrix)),
+        observe_strides=float(observe_strides),
         jobs=_count("jobs", jobs, 0, 2**32),
         shard_k_n=_shard(shard),
         controller=controller,

@@ -21,11 +21,13 @@ from typing import Any, Mapping, Optional, Sequence, Tuple, Union
 import exoleg
 
 
-def _run_shard(scenario, k: int, n: int, kwargs: Mapping[str, Any]) -> Tuple[bytes, bytes]:
-    """Run shard k of n on a worker; return its ``shard.json`` and ``runs.jsonl`` bytes."""
+def _run_shard(scenario, k: int, n: int, kwargs: Mapping[str, Any], kind: str = "sweep") -> Tuple[bytes, bytes]:
+    """Run shard k of n of a sweep (or a fault campaign, ``kind="faults"``) on a worker;
+    return its ``shard.json`` and ``runs.jsonl`` bytes."""
+    study = exoleg.faults if kind == "faults" else exoleg.sweep
     with tempfile.TemporaryDirectory(prefix="exoleg-shard-") as tmp:
         out = os.path.join(tmp, f"shard_{k}")
-        exoleg.sweep(scenario, out=out, shard=(k, n), jobs=1, **kwargs)
+        study(scenario, out=out, shard=(k, n), jobs=1, **kwargs)
         with open(os.path.join(out, "shard.json"), "rb") as f:
             meta = f.read()
         with open(os.path.join(out, "runs.jsonl"), "rb") as f:
@@ -51,11 +53,39 @@ def sweep(
         scenario = os.fspath(scenario)
     kwargs = dict(grid=grid, monte_carlo=monte_carlo, vary=vary, overrides=overrides)
     runs = len(exoleg.plan(scenario, grid=grid, monte_carlo=monte_carlo, vary=vary, overrides=overrides))
+    return _sharded(client, scenario, kwargs, "sweep", runs, shards, out)
+
+
+def faults(
+    client: Any,
+    scenario: Union[str, os.PathLike, Mapping[str, Any], None],
+    *,
+    matrix: Union[str, os.PathLike, None] = None,
+    observe_strides: float = 2.0,
+    overrides: Optional[Mapping[str, Any]] = None,
+    out: Union[str, os.PathLike] = "out/faults",
+    shards: Optional[int] = None,
+) -> "exoleg.Study":
+    """The fault campaign (:func:`exoleg.faults`) on ``client`` in ``shards`` tasks, merged into
+    ``out``: the same ``faults.csv``, ``fmea.md`` and heat map as on one machine. A matrix file
+    must be readable on the workers."""
+    if isinstance(scenario, os.PathLike):
+        scenario = os.fspath(scenario)
+    if matrix is not None:
+        matrix = os.path.abspath(os.fspath(matrix))
+    kwargs = dict(matrix=matrix, observe_strides=observe_strides, overrides=overrides)
+    runs = len(exoleg._native.plan("faults", **exoleg._args(scenario, overrides), matrix=matrix,
+                                   observe_strides=float(observe_strides)))
+    return _sharded(client, scenario, kwargs, "faults", runs, shards, out)
+
+
+def _sharded(client, scenario, kwargs, kind, runs, shards, out) -> "exoleg.Study":
+    """Submit ``shards`` tasks of a study of ``runs`` runs, gather them and merge into ``out``."""
     if shards is None:
         threads = sum(client.nthreads().values()) or 1
         shards = 2 * threads
     shards = max(1, min(int(shards), runs))
-    futures = [client.submit(_run_shard, scenario, k, shards, kwargs, pure=False) for k in range(shards)]
+    futures = [client.submit(_run_shard, scenario, k, shards, kwargs, kind, pure=False) for k in range(shards)]
     results = client.gather(futures)
     with tempfile.TemporaryDirectory(prefix="exoleg-merge-") as tmp:
         dirs = []
