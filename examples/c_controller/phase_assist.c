@@ -88,7 +88,7 @@ void *exoleg_create(const ExolegInfo *info) {
                    &c->knee_min,   &c->knee_max,       &c->cuff_limit, &c->swing_gyro, &c->use_gyro, &c->stop_on_trip,
                    &c->fric_c,     &c->fric_v,         &c->monitor,  &c->freeze_s, &c->knee_motion, &c->pressure_change};
     const double defaults[] = {15.0, 20.0, 1.1,   300.0, -0.0523, -0.0706, -0.35, 1.4, 400.0,
-                               1.5,  0.0,  0.0,   20.0,  300.0,   0.0,     0.02,  0.5, 3e5};
+                               1.5,  0.0,  0.0,   20.0,  300.0,   0.0,     0.02,  0.5, 2e4};
     for (size_t k = 0; k < sizeof defaults / sizeof defaults[0]; k++) {
         *p[k] = defaults[k];
     }

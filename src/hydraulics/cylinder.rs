@@ -61,6 +61,11 @@ pub struct ValveFaults {
     /// drains each chamber toward the return pressure; the linear model, which has no mean
     /// pressure, relaxes its load pressure `F_L / A_eff` through the orifice.
     pub vent_k: f64,
+    /// The valve is sealed at its null: a spool held at centre by a fault, or spring-centred
+    /// without power, seals its ports with its overlap, so the working valve's flow-pressure
+    /// coefficient K_c (the `2 K_c` of n3) is gone and only the opening's flow and the
+    /// cylinder's own leakage (`2 C_in + C_ex`) remain.
+    pub sealed: bool,
     /// The supply pressure's fraction left (1: normal).
     pub supply_factor: f64,
     /// No power: the valve's command is 0.
@@ -74,6 +79,7 @@ impl ValveFaults {
         spool_tau_factor: 1.0,
         bypass_k: 0.0,
         vent_k: 0.0,
+        sealed: false,
         supply_factor: 1.0,
         power_off: false,
     };
@@ -125,6 +131,9 @@ pub struct Cylinder {
     pub supply_return_pa: (f64, f64),
     /// Valve flow gain K_q (m^2/s).
     pub k_q: f64,
+    /// The valve's part of n3, `beta 2 K_c / V0` (1/s): its flow-pressure coefficient at the
+    /// working null, which a sealed valve ([`ValveFaults::sealed`]) does not have.
+    pub n3_valve_per_s: f64,
 }
 
 impl Cylinder {
@@ -148,6 +157,7 @@ impl Cylinder {
             areas_m2: (h.a1_m2, h.a2_m2),
             supply_return_pa: (h.supply_pressure_pa, h.return_pressure_pa),
             k_q: h.k_q,
+            n3_valve_per_s: h.beta_pa * 2.0 * h.k_c / h.v0_m3,
         }
     }
 
@@ -306,7 +316,7 @@ impl Cylinder {
         inp: &ForceChannelInput,
         f: &ValveFaults,
     ) -> ForceRates {
-        if f.bypass_k == 0.0 && f.vent_k == 0.0 && f.supply_factor == 1.0 {
+        if f.bypass_k == 0.0 && f.vent_k == 0.0 && !f.sealed && f.supply_factor == 1.0 {
             return self.rates(h, piston, inp);
         }
         let (pa, pb) = self.pressures_pa(h);
@@ -321,7 +331,8 @@ impl Cylinder {
                     + c.n4
                     + inp.force_rate_dist_n_per_s
                     + x.accel_dist_n_per_s
-                    - c.n2 * 2.0 / sum * (q + vent);
+                    - c.n2 * 2.0 / sum * (q + vent)
+                    + if f.sealed { self.n3_valve_per_s * x.force_n } else { 0.0 };
                 (r, 0.0)
             }
             Some(tc) => {
@@ -332,7 +343,8 @@ impl Cylinder {
                 let (l1, l2) = tc.transfer_rates(piston.position_m, q);
                 let vent = |p: f64| bypass_flow_m3_s(f.vent_k, p - tc.p_r);
                 let (v1, v2) = tc.drain_rates(piston.position_m, vent(p1), vent(p2));
-                (d1, d2) = (d1 + l1 + v1, d2 + l2 + v2);
+                let (s1, s2) = if f.sealed { tc.null_leak_rates(p1, p2, piston.position_m) } else { (0.0, 0.0) };
+                (d1, d2) = (d1 + l1 + v1 - s1, d2 + l2 + v2 - s2);
                 let (df, _) = tc.force_and_mean(d1, d2);
                 (df, 0.5 * (d1 + d2))
             }

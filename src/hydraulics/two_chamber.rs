@@ -177,6 +177,14 @@ impl TwoChamber {
         (-self.beta / v1 * q1, -self.beta / v2 * q2)
     }
 
+    /// The pressure rates (Pa/s) the valve's null leakage (its `kc1`, `kc2` terms about the
+    /// operating point) gives at piston position `xc`: what a sealed valve does not have.
+    pub fn null_leak_rates(&self, p1: f64, p2: f64, xc: f64) -> (f64, f64) {
+        let v1 = (self.v1_0 + self.a1 * xc).max(0.05 * self.v1_0);
+        let v2 = (self.v2_0 - self.a2 * xc).max(0.05 * self.v2_0);
+        (-self.beta / v1 * self.kc1 * (p1 - self.p1_0), -self.beta / v2 * self.kc2 * (p2 - self.p2_0))
+    }
+
     /// Clamp pressures to [p_r, p_s].
     pub fn clamp(&self, p1: f64, p2: f64) -> (f64, f64) {
         (p1.clamp(self.p_r, self.p_s), p2.clamp(self.p_r, self.p_s))

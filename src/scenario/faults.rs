@@ -104,7 +104,13 @@ fn within(key: &str, name: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Res
     match ok {
         true => Ok(v),
         false => {
-            Err((format!("{key}.{name}"), format!("must be in {}{lo}..={hi}, got {v}", if open_lo { ">" } else { "" })))
+            let range = match (hi == f64::MAX, lo == -f64::MAX, open_lo) {
+                (true, true, _) => "finite".to_string(),
+                (true, false, true) => format!("> {lo}"),
+                (true, false, false) => format!(">= {lo}"),
+                (false, _, open) => format!("in {}{lo}..={hi}", if open { ">" } else { "" }),
+            };
+            Err((format!("{key}.{name}"), format!("must be {range}, got {v}")))
         }
     }
 }

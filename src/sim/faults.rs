@@ -83,6 +83,7 @@ impl Simulation {
             match k {
                 A::SpoolStuck(at) => {
                     v.spool_stuck = true;
+                    v.sealed = at == Some(0.0);
                     if let (Some(x), false) = (at, self.faults.started[i]) {
                         self.state.hyd.spool_m = x;
                     }
@@ -95,6 +96,7 @@ impl Simulation {
                 }
                 A::PowerLoss => {
                     v.power_off = true;
+                    v.sealed = true;
                     if act.failsafe == Failsafe::Free {
                         v.vent_k = bypass;
                     }
@@ -104,6 +106,7 @@ impl Simulation {
         }
         if self.faults.stopped.is_some() {
             v.power_off = true;
+            v.sealed = true;
             if act.failsafe == Failsafe::Free {
                 v.vent_k = bypass;
             }

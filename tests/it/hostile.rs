@@ -184,3 +184,8 @@ fn hostile_command_lines() {
         }
     }
 }
+
+#[test]
+fn fault_matrix_corpus() {
+    replay("fault_matrix", |text| exoleg::study::faults::parse_matrix("matrix.toml", text).map(|_| ()));
+}

@@ -8,6 +8,7 @@ mod bench_motion;
 mod cli;
 mod device_sensors;
 mod end_stops;
+mod faults;
 mod firmware;
 mod fmu;
 mod gait;
