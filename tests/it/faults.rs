@@ -197,7 +197,7 @@ fn power_loss_free_follows_the_wearer_and_locked_holds_the_knee() {
 /// A leakage orifice across the piston of a locked cylinder (spool stuck at centre): once
 /// the knee creeps steadily, the flow the piston displaces beyond the cylinder's own leakage,
 /// `(A1 + A2) / 2 (|v| - n3_leak |F_L| / n2)`, is the orifice equation's `C_d A sqrt(2 dp /
-/// rho)` at the recorded chamber pressures' difference. Measured: within 0.0x %.
+X
 #[test]
 fn a_leakage_orifice_passes_the_orifice_equations_flow() {
     let (area, cd, rho) = (2e-7, 0.61, 870.0);
@@ -214,6 +214,7 @@ fn a_leakage_orifice_passes_the_orifice_equations_flow() {
     let n2 = h.beta_pa * a * a / (2.0 * h.v0_m3);
     let n3_leak = h.beta_pa * h.leakage / h.v0_m3;
     let piston = a / 2.0 * (last.piston_velocity_m_s + n3_leak * last.load_force_n / n2).abs();
+    eprintln!("leakage: dp {dp} Pa, piston {piston} m^3/s, orifice {orifice} m^3/s");
     assert!(dp.abs() > 1e5, "a pressure difference to measure: {dp} Pa");
     assert!((piston / orifice - 1.0).abs() < 0.01, "piston {piston} m^3/s, orifice {orifice} m^3/s at {dp} Pa");
 }
