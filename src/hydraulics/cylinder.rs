@@ -106,6 +106,24 @@ pub fn bypass_flow_m3_s(k: f64, dp: f64) -> f64 {
     k * dp / (dp * dp + BYPASS_TRANSITION_PA * BYPASS_TRANSITION_PA).sqrt().sqrt()
 }
 
+/// The pressure difference (Pa) at which [`bypass_flow_m3_s`] passes `q` (m^3/s): its inverse,
+/// `dp^2 = (q^4 + sqrt(q^8 + 4 k^4 q^4 dp_t^2)) / (2 k^4)`.
+pub fn bypass_pressure_pa(k: f64, q: f64) -> f64 {
+    if k <= 0.0 || q == 0.0 {
+        return 0.0;
+    }
+    let (k4, q4) = (k.powi(4), q.powi(4));
+    let y = (q4 + (q4 * q4 + 4.0 * k4 * q4 * BYPASS_TRANSITION_PA * BYPASS_TRANSITION_PA).sqrt()) / (2.0 * k4);
+    y.sqrt().copysign(q)
+}
+
+/// The free failsafe's vent in the linear model relaxes the load force to its quasi-static
+/// value with at least this time constant (s) when the vent itself is faster: an open bypass
+/// relaxes the load pressure in microseconds (a stiff state that would take hundreds of
+/// substeps per millisecond step), and the knee moves on the scale of tens of milliseconds, so
+/// the force is the damper force the vent's flow sets, 0.5 ms late at most.
+pub const VENT_RELAX_S: f64 = 5e-4;
+
 /// Which plant integrates the force channel.
 #[derive(Debug, Clone, PartialEq)]
 enum Chambers {
@@ -326,13 +344,20 @@ impl Cylinder {
             None => {
                 let c = &self.coeffs;
                 let x = h.channel();
-                let vent = bypass_flow_m3_s(f.vent_k, self.load_pressure_pa(h));
-                let r = c.n1 * f.supply_factor.sqrt() * x.spool_m - c.n2 * inp.piston_velocity_m_s - c.n3 * x.force_n
-                    + c.n4
-                    + inp.force_rate_dist_n_per_s
-                    + x.accel_dist_n_per_s
-                    - c.n2 * 2.0 / sum * (q + vent)
-                    + if f.sealed { self.n3_valve_per_s * x.force_n } else { 0.0 };
+                let rest =
+                    c.n1 * f.supply_factor.sqrt() * x.spool_m - c.n2 * inp.piston_velocity_m_s - c.n3 * x.force_n
+                        + c.n4
+                        + inp.force_rate_dist_n_per_s
+                        + x.accel_dist_n_per_s
+                        - c.n2 * 2.0 / sum * q
+                        + if f.sealed { self.n3_valve_per_s * x.force_n } else { 0.0 };
+                let r = if self.vent_rate_per_s(f.vent_k) * VENT_RELAX_S > 1.0 {
+                    // Quasi-static: the vent passes what the rest would change the force by.
+                    let f_qs = bypass_pressure_pa(f.vent_k, rest * sum / (2.0 * c.n2)) * sum / 2.0;
+                    (f_qs - x.force_n) / VENT_RELAX_S
+                } else {
+                    rest - c.n2 * 2.0 / sum * bypass_flow_m3_s(f.vent_k, self.load_pressure_pa(h))
+                };
                 (r, 0.0)
             }
             Some(tc) => {
@@ -412,14 +437,22 @@ impl Cylinder {
     /// now: at most `k / sqrt(dp_t)`) and a slow spool.
     pub fn local_stiffness_with(&self, h: &HydraulicState, piston_position_m: f64, f: &ValveFaults) -> (f64, f64) {
         let (mut rate, k) = self.local_stiffness(h, piston_position_m);
-        if f.bypass_k > 0.0 || f.vent_k > 0.0 {
-            // d(dp)/dF for the linear model's pressures: 2 / (A1 + A2); the two-chamber
-            // chambers' pressures move with their own volumes, of the same order.
-            let sum = self.areas_m2.0 + self.areas_m2.1;
-            let slope = (f.bypass_k + f.vent_k) / BYPASS_TRANSITION_PA.sqrt();
-            rate = rate.max(self.coeffs.n2 * 2.0 / sum * slope * 2.0 / sum);
-        }
+        let vent = match self.chambers {
+            // The linear model's vent relaxes no faster than VENT_RELAX_S.
+            Chambers::Linear => self.vent_rate_per_s(f.vent_k).min(1.0 / VENT_RELAX_S),
+            Chambers::Two(_) => self.vent_rate_per_s(f.vent_k),
+        };
+        rate = rate.max(self.vent_rate_per_s(f.bypass_k)).max(vent);
         (rate, k)
+    }
+
+    /// The decay rate (1/s) of the load force through an orifice `k` across the load pressure
+    /// at its steepest (`k / sqrt(dp_t)`): `n2 (2 / (A1 + A2))^2 k / sqrt(dp_t)` (d(dp)/dF is
+    /// 2 / (A1 + A2) for the linear model's pressures; the two-chamber chambers' pressures move
+    /// with their own volumes, of the same order).
+    fn vent_rate_per_s(&self, k: f64) -> f64 {
+        let sum = self.areas_m2.0 + self.areas_m2.1;
+        self.coeffs.n2 * (2.0 / sum).powi(2) * k / BYPASS_TRANSITION_PA.sqrt()
     }
 
     /// Whether the cylinder is at its force limit (linear: a bound; two chambers: a pressure
