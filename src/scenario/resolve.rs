@@ -648,6 +648,40 @@ impl Scenario {
         Ok(())
     }
 
+    /// The device's sensors of a sampled run (`sampled`), with the leg's mounting defaults.
+    fn device_setup(
+        &self,
+        leg: Option<&crate::scenario::files::LoadedLeg>,
+        sampled: bool,
+    ) -> Result<Option<crate::sensors::DeviceSetup>> {
+        let f = &self.file;
+        let defaults = match leg {
+            Some(l) => l.model.device_defaults(),
+            None => crate::sensors::DeviceDefaults { imu_xyz_m: [[0.0; 3]; 2], foot_x_m: (-0.03, 0.15) },
+        };
+        if !sampled {
+            return Ok(None);
+        }
+        f.sensors
+            .device_setup(f.controller.sample_period_s, &defaults)
+            .map(Some)
+            .map_err(|(key, m)| Error::input(&self.source_name, key, m))
+    }
+
+    /// The scenario's `[[faults]]` resolved for the run of `plant` (a leg run when `leg`).
+    fn faults(&self, plant: &PlantSetup, leg: bool) -> Result<Vec<crate::faults::Fault>> {
+        let f = &self.file;
+        let fcx = crate::scenario::FaultContext {
+            duration_s: f.sim.duration_s,
+            settle_s: f.metrics.settle_s,
+            sample_period_s: f.controller.sample_period_s,
+            walking: crate::sim::is_walking(plant),
+            leg,
+            sensors: &f.sensors,
+        };
+        crate::scenario::resolve_faults(&f.faults, &fcx).map_err(|(k, m)| Error::input(&self.source_name, k, m))
+    }
+
     /// Resolve this validated scenario with shared inputs from `res`. Every input error
     /// (files, leg, gait, cuff) is reported here.
     pub fn resolve(&self, res: &Resources) -> Result<ResolvedScenario> {
@@ -686,16 +720,7 @@ impl Scenario {
             }
         };
         let desired_force = f.reference.force == crate::scenario::DesiredForce::Computed;
-        let knee_pd = match (&reference, &nominal) {
-            _ if !desired_force => None,
-            (ForceReference::Gait(_) | ForceReference::Pose { .. }, Some(model)) => Some(KneePd {
-                kp_nm_per_rad: f.reference.knee_kp_nm_per_rad,
-                kd_nm_s_per_rad: f.reference.knee_kd_nm_s_per_rad,
-                ki_nm_per_rad_s: f.reference.knee_ki_nm_per_rad_s,
-                model: model.clone(),
-            }),
-            _ => None,
-        };
+        let knee_pd = knee_pd(f, &reference, nominal.as_ref(), desired_force);
         let band = match (f.metrics.convergence_band_n, f.reference.kind) {
             (None, ReferenceKind::Gait | ReferenceKind::Pose) => Band::FractionOfPeakReference(0.01),
             (Some(b), _) => Band::Fixed(b),
@@ -705,29 +730,8 @@ impl Scenario {
         let dt_s = f.sim.dt_s;
         let sample_every =
             (f.controller.sample_period_s > 0.0).then(|| (f.controller.sample_period_s / dt_s).round() as usize);
-        let defaults = match &leg {
-            Some(l) => l.model.device_defaults(),
-            None => crate::sensors::DeviceDefaults { imu_xyz_m: [[0.0; 3]; 2], foot_x_m: (-0.03, 0.15) },
-        };
-        let device = match sample_every {
-            Some(_) => Some(
-                f.sensors
-                    .device_setup(f.controller.sample_period_s, &defaults)
-                    .map_err(|(key, m)| Error::input(&self.source_name, key, m))?,
-            ),
-            None => None,
-        };
-        let walking = crate::sim::is_walking(&plant);
-        let fcx = crate::scenario::FaultContext {
-            duration_s: f.sim.duration_s,
-            settle_s: f.metrics.settle_s,
-            sample_period_s: f.controller.sample_period_s,
-            walking,
-            leg: leg.is_some(),
-            sensors: &f.sensors,
-        };
-        let faults =
-            crate::scenario::resolve_faults(&f.faults, &fcx).map_err(|(k, m)| Error::input(&self.source_name, k, m))?;
+        let device = self.device_setup(leg.as_deref(), sample_every.is_some())?;
+        let faults = self.faults(&plant, leg.is_some())?;
         let model = Model {
             faults,
             on_stop: f.controller.on_stop,
@@ -771,5 +775,24 @@ impl Scenario {
             warnings: cx.warnings,
             path: self.path.clone(),
         })
+    }
+}
+
+/// The cascade's outer knee loop of a gait or pose run with a desired force (None otherwise).
+fn knee_pd(
+    f: &ScenarioFile,
+    reference: &ForceReference,
+    nominal: Option<&Arc<crate::leg::LegSpec>>,
+    desired_force: bool,
+) -> Option<KneePd> {
+    match (reference, nominal) {
+        _ if !desired_force => None,
+        (ForceReference::Gait(_) | ForceReference::Pose { .. }, Some(model)) => Some(KneePd {
+            kp_nm_per_rad: f.reference.knee_kp_nm_per_rad,
+            kd_nm_s_per_rad: f.reference.knee_kd_nm_s_per_rad,
+            ki_nm_per_rad_s: f.reference.knee_ki_nm_per_rad_s,
+            model: model.clone(),
+        }),
+        _ => None,
     }
 }
