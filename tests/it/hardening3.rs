@@ -81,6 +81,22 @@ fn no_command_replaces_a_device_a_fifo_a_link_or_its_own_input() {
     )
     .is_ok();
     std::fs::write(t.join("notes.txt"), "my notes").unwrap();
+    // A leg scenario and a one-mode matrix for the fault campaign; a gait folder of one trial.
+    let leg = t.join("leg.toml");
+    std::fs::copy(scenario_path("default.toml"), &leg).unwrap();
+    let leg = leg.display().to_string();
+    std::fs::write(
+        t.join("m.toml"),
+        "onsets_s = [0.005]\n[[mode]]\ntarget = \"valve\"\nkind = \"stuck\"\n[[mode.severity]]\nlabel = \"held\"\n",
+    )
+    .unwrap();
+    let gait = t.join("gait");
+    std::fs::create_dir(&gait).unwrap();
+    let v3 = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/gait/v3");
+    let rows = std::fs::read_to_string(v3.join("subjects.csv")).unwrap();
+    let mut rows = rows.lines();
+    std::fs::write(gait.join("subjects.csv"), format!("{}\n{}\n", rows.next().unwrap(), rows.next().unwrap())).unwrap();
+    std::fs::copy(v3.join("wbds20_treadmill_t05.csv"), gait.join("wbds20_treadmill_t05.csv")).unwrap();
     std::os::unix::fs::symlink("notes.txt", t.join("link")).unwrap();
     let commands: Vec<(Vec<String>, Vec<String>)> = {
         let v = |x: &[&str]| x.iter().map(|s| s.to_string()).collect::<Vec<_>>();
@@ -94,6 +110,22 @@ fn no_command_replaces_a_device_a_fifo_a_link_or_its_own_input() {
             (v(&["compare", "--firmware", "--json"]), v(&[exe()])),
             (v(&["urdf", "--mass-kg", "70", "--height-m", "1.75", "--out"]), v(&[exe()])),
             (v(&["fmu", &sc, "--library", &lib, "--out"]), v(&[&sc, &lib])),
+            (
+                v(&[
+                    "faults",
+                    &leg,
+                    "--set",
+                    "sim.duration_s=0.01",
+                    "--set",
+                    "actuator.spool_limit_m=0.01",
+                    "--matrix",
+                    "m.toml",
+                    "--quiet",
+                    "--out",
+                ]),
+                v(&[&leg, "m.toml"]),
+            ),
+            (v(&["gait-check", "gait", "--strides", "2", "--quiet", "--out"]), v(&["gait", "gait/subjects.csv"])),
         ]
     };
     let mut targets: Vec<String> = vec!["/dev/null".into(), "fifo".into(), "link".into(), "notes.txt".into()];
