@@ -263,6 +263,17 @@ pub enum Command {
         #[arg(long, value_name = "PATH")]
         library: Option<PathBuf>,
     },
+    /// (Internal) serve an isolated plugin to the run that started this process
+    /// (`controller.plugin.isolate`).
+    #[command(name = "plugin-host", hide = true)]
+    PluginHost {
+        /// The socket the run gave.
+        #[arg(long)]
+        fd: i32,
+        /// The plugin library.
+        #[arg(long)]
+        library: PathBuf,
+    },
 }
 
 fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
@@ -772,6 +783,7 @@ fn absolute_paths(c: Command) -> Command {
             run.scenario = opt(run.scenario);
             Command::GaitCheck { dirs: dirs.into_iter().map(absolute).collect(), out: absolute(out), run }
         }
+        c @ Command::PluginHost { .. } => c,
     }
 }
 
@@ -783,6 +795,10 @@ pub fn exit(code: i32) -> ! {
 /// Execute a parsed command line. Returns the process exit code on success. While it runs,
 /// an `exit()` from anything but exoleg (a plugin) ends the process with exit 3, never 0.
 pub fn run(cli: Cli) -> Result<i32> {
+    if let Command::PluginHost { fd, library } = &cli.command {
+        // A child of a run: its exit status (a plugin's exit() included) is the run's to read.
+        return Ok(crate::control::isolate::child::serve(*fd, library));
+    }
     let _armed = crate::control::plugin::exit_guard::arm();
     match absolute_paths(cli.command) {
         Command::Run { scenario, out, sets, quiet, animate } => cmd_run(scenario, out, sets, quiet, animate),
@@ -803,5 +819,6 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Urdf { mass_kg, height_m, leg_length_m, sex, out } => {
             cmd_urdf(mass_kg, height_m, leg_length_m, sex, out)
         }
+        Command::PluginHost { .. } => Ok(EXIT_OK),
     }
 }
