@@ -15,6 +15,7 @@ mod gait_check;
 mod hardening;
 mod hardening3;
 mod hostile;
+mod isolation;
 mod leg_coupled;
 mod leg_ground;
 mod leg_hip;

@@ -49,7 +49,8 @@ fn send(sock: &mut UnixStream, seq: u64, m: &Message, kind: MsgType) -> Result<(
 
 /// The next message; None at the socket's end.
 fn receive(sock: &mut UnixStream, buf: &mut [u8]) -> Result<Option<(Header, Message)>, String> {
-    match sock.read(buf) {
+    let spin = std::time::Duration::from_secs_f64(super::SPIN_S);
+    match super::receive_spinning(sock, buf, spin).unwrap_or_else(|| sock.read(buf)) {
         Ok(0) => Ok(None),
         Ok(n) => wire::decode(&buf[..n]).map(Some),
         Err(e) => Err(format!("cannot receive: {e}")),
