@@ -14,6 +14,7 @@ mod gait;
 mod gait_check;
 mod hardening;
 mod hardening3;
+mod hil;
 mod hostile;
 mod isolation;
 mod leg_coupled;
