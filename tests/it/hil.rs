@@ -230,7 +230,8 @@ impl Peer {
 fn hil_refuses_a_peer_of_another_version_abi_or_channel_table() {
     let tmp = tempfile::tempdir().unwrap();
     let good = (wire::abi_version(), wire::channel_hash());
-    let cases: [(&str, Box<dyn Fn(&Peer)>, &str); 4] = [
+    type Speak<'a> = Box<dyn Fn(&Peer) + 'a>;
+    let cases: [(&str, Speak, &str); 4] = [
         (
             "version",
             Box::new(|p: &Peer| {
@@ -292,11 +293,11 @@ fn hil_counts_and_survives_junk_during_a_run() {
             peer.raw(&vec![0u8; 40_000]); // oversized
             peer.raw(&[0xffu8; 64]); // wrong magic
             let mut cut = Vec::new();
-            wire::encode(&h, &Message::Readings(Box::new(ExolegReadings::default())), &mut cut);
+            wire::encode(&h, &Message::Readings(Box::<ExolegReadings>::default()), &mut cut);
             peer.raw(&cut[..cut.len() - 5]); // a truncated payload
             peer.command(3, 0.0); // from the past
             peer.command(u64::MAX, 0.0); // the far future
-            peer.send(MsgType::Readings, 10, &Message::Readings(Box::new(ExolegReadings::default())));
+            peer.send(MsgType::Readings, 10, &Message::Readings(Box::<ExolegReadings>::default()));
         }
         peer.command(h.seq, 0.0);
         samples += 1;
