@@ -263,6 +263,55 @@ pub enum Command {
         #[arg(long, value_name = "PATH")]
         library: Option<PathBuf>,
     },
+    /// Hardware in the loop: run a scenario's plant against a controller peer over UDP (a board,
+    /// another process or machine, `examples/hil/hil_client.c`, `python -m exoleg.hil`)
+    /// speaking the protocol of the README's "The controller out of process". Writes what
+    /// `run` writes; summary.json's controller_link has the link's figures.
+    Hil {
+        /// Scenario file (TOML; controller.sample_period_s > 0). Its controller.plugin.params
+        /// and .log go to the peer. Default: the embedded paper Figure 5 case.
+        scenario: Option<PathBuf>,
+        /// ADDR:PORT to listen on (port 0: any free port; the address is printed on stderr).
+        #[arg(long, default_value = "127.0.0.1:9300")]
+        listen: String,
+        /// `lockstep` (the plant waits for every command: bit-identical to the in-process
+        /// plugin) or `realtime` (paced at wall-clock time; a late command is missed).
+        #[arg(long, value_enum, default_value = "lockstep")]
+        mode: crate::hil::Mode,
+        /// Output directory (replaced as a whole when the run completes).
+        #[arg(long, default_value = "out/hil")]
+        out: PathBuf,
+        /// Override any scenario key (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        sets: Vec<String>,
+        /// Print nothing but errors.
+        #[arg(long)]
+        quiet: bool,
+        /// How long to wait for the peer's HELLO (s).
+        #[arg(long, default_value_t = 60.0)]
+        wait_s: f64,
+        /// The stall watchdog: the run ends when no valid command comes for this long (s).
+        #[arg(long, default_value_t = 10.0)]
+        stall_timeout_s: f64,
+        /// Lockstep: send the readings again after this long without an answer (s).
+        #[arg(long, default_value_t = 0.1)]
+        resend_s: f64,
+        /// Realtime: the valve command of a sample whose command missed its deadline (`hold`
+        /// the last, or `zero`).
+        #[arg(long, value_enum, default_value = "hold")]
+        on_miss: crate::hil::OnMiss,
+    },
+    /// (Internal) serve an isolated plugin to the run that started this process
+    /// (`controller.plugin.isolate`).
+    #[command(name = "plugin-host", hide = true)]
+    PluginHost {
+        /// The socket the run gave.
+        #[arg(long)]
+        fd: i32,
+        /// The plugin library.
+        #[arg(long)]
+        library: PathBuf,
+    },
 }
 
 fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
@@ -410,6 +459,53 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bo
         let failed: Vec<&str> = report.criteria.iter().filter(|c| !c.pass).map(|c| c.name.as_str()).collect();
         Err(Error::Criteria(format!("{} failed: {}", sc.source_name, failed.join(", "))))
     }
+}
+
+/// `exoleg hil`: the scenario's plant against a controller peer over UDP.
+fn cmd_hil(
+    scenario: Option<PathBuf>,
+    sets: Vec<String>,
+    opts: crate::hil::HilOptions,
+    out: PathBuf,
+    quiet: bool,
+) -> Result<i32> {
+    for (flag, v) in
+        [("--wait-s", opts.wait_s), ("--stall-timeout-s", opts.stall_timeout_s), ("--resend-s", opts.resend_s)]
+    {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::input(flag, "", format!("must be a finite number > 0 (s), got {v}")));
+        }
+    }
+    let sc = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
+    warn(&sc.warnings);
+    let m = &sc.model;
+    if m.sample_every.is_none() {
+        let why = "a controller peer runs sampled: set controller.sample_period_s > 0";
+        return Err(Error::input(&sc.source_name, "controller.sample_period_s", why));
+    }
+    let c = &m.nominal.c;
+    let params = sc.file.controller.plugin.numbers().map_err(|(k, e)| Error::input(&sc.source_name, k, e))?;
+    let setup = crate::control::plugin::InstanceSetup {
+        sample_period_s: m.sample_period_s,
+        valve_command_limit: m.valve_limit.0,
+        nominal: [c.n1, c.n2, c.n3, c.tau_s, c.k_s],
+        seed: m.seed,
+        params: params.into_iter().map(|(n, v)| (n.to_string_lossy().into_owned(), v)).collect(),
+    };
+    let link = crate::hil::HilController::bind(&opts.listen).map_err(|e| Error::input("--listen", "", e))?;
+    let at = link.local_addr().map_or(opts.listen.clone(), |a| a.to_string());
+    eprintln!("exoleg hil: waiting for a controller peer on {at} ({:?})", opts.mode);
+    let stopped = |message| Error::ControllerStopped { time_s: 0.0, controller: "hil".into(), message };
+    let ctrl = crate::hil::HilController::on_link(link, &setup, sc.file.controller.plugin.log.clone(), opts)
+        .map_err(stopped)?;
+    let report = study::RunBuilder::new(&sc).controller(Box::new(ctrl)).write_to(&out)?;
+    if !quiet {
+        print_summary(&sc, &report.summary, &out);
+        if let Some(l) = &report.summary.controller_link {
+            println!("link                {l}");
+        }
+    }
+    Ok(EXIT_OK)
 }
 
 /// `exoleg sweep`.
@@ -772,6 +868,21 @@ fn absolute_paths(c: Command) -> Command {
             run.scenario = opt(run.scenario);
             Command::GaitCheck { dirs: dirs.into_iter().map(absolute).collect(), out: absolute(out), run }
         }
+        Command::Hil { scenario, listen, mode, out, sets, quiet, wait_s, stall_timeout_s, resend_s, on_miss } => {
+            Command::Hil {
+                scenario: opt(scenario),
+                listen,
+                mode,
+                out: absolute(out),
+                sets,
+                quiet,
+                wait_s,
+                stall_timeout_s,
+                resend_s,
+                on_miss,
+            }
+        }
+        c @ Command::PluginHost { .. } => c,
     }
 }
 
@@ -783,6 +894,10 @@ pub fn exit(code: i32) -> ! {
 /// Execute a parsed command line. Returns the process exit code on success. While it runs,
 /// an `exit()` from anything but exoleg (a plugin) ends the process with exit 3, never 0.
 pub fn run(cli: Cli) -> Result<i32> {
+    if let Command::PluginHost { fd, library } = &cli.command {
+        // A child of a run: its exit status (a plugin's exit() included) is the run's to read.
+        return Ok(crate::control::isolate::child::serve(*fd, library));
+    }
     let _armed = crate::control::plugin::exit_guard::arm();
     match absolute_paths(cli.command) {
         Command::Run { scenario, out, sets, quiet, animate } => cmd_run(scenario, out, sets, quiet, animate),
@@ -803,5 +918,10 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Urdf { mass_kg, height_m, leg_length_m, sex, out } => {
             cmd_urdf(mass_kg, height_m, leg_length_m, sex, out)
         }
+        Command::Hil { scenario, listen, mode, out, sets, quiet, wait_s, stall_timeout_s, resend_s, on_miss } => {
+            let opts = crate::hil::HilOptions { listen, mode, wait_s, stall_timeout_s, resend_s, on_miss };
+            cmd_hil(scenario, sets, opts, out, quiet)
+        }
+        Command::PluginHost { .. } => Ok(EXIT_OK),
     }
 }

@@ -38,6 +38,7 @@ pub mod error;
 pub mod faults;
 pub mod fmu;
 pub mod fsio;
+pub mod hil;
 pub mod human;
 pub mod hydraulics;
 pub mod integrator;

@@ -210,6 +210,7 @@ impl<S: RecordSink> Session<S> {
             summary.controller_warnings =
                 Some(crate::metrics::ControllerWarnings { samples: n, last: last.unwrap_or_default() });
         }
+        (summary.controller_compute, summary.controller_link) = sim.controller_timing();
         Ok(Finished { summary, design: sim.controller_design(), sink: self.sink })
     }
 }

@@ -289,6 +289,19 @@ pub trait DiscreteController: Send {
     fn warnings(&self) -> (usize, Option<String>) {
         (0, None)
     }
+
+    /// Wall time of each of the controller's computations so far (s): measured, reported in
+    /// `summary.json` (`controller_compute`), never fed to the physics. Empty when not
+    /// measured (the built-in controllers).
+    fn compute_times_s(&self) -> &[f64] {
+        &[]
+    }
+
+    /// Figures of the link to a controller outside the process (an isolated plugin's round
+    /// trips; a hardware-in-the-loop peer's latency, losses and deadlines), if there is one.
+    fn link_report(&self) -> Option<serde_json::Value> {
+        None
+    }
 }
 
 pub use crate::record::MAX_LOGGED;

@@ -21,11 +21,14 @@ mod dtznn;
 mod erl_smc;
 mod fdo;
 mod interface;
+pub mod isolate;
 mod knee_pd;
 mod open_loop;
 mod params;
 pub mod plugin;
 mod sampled;
+pub mod timing;
+pub mod wire;
 mod znn;
 
 pub use arbfnn::*;
@@ -292,7 +295,10 @@ impl ControllerSetup {
     pub fn discrete(&self, nominal: NominalModel, limit: ValveLimit) -> Result<Box<dyn DiscreteController>, String> {
         Ok(match self {
             ControllerSetup::Dtznn(d) => Box::new((**d).clone()),
-            ControllerSetup::Plugin(p) => Box::new(p.instance()?),
+            ControllerSetup::Plugin(p) => match p.isolate_timeout_s() {
+                Some(timeout_s) => Box::new(isolate::IsolatedPlugin::spawn(p.clone(), timeout_s)?),
+                None => Box::new(p.instance()?),
+            },
             _ => Box::new(Sampled::new(self.continuous(nominal), limit)),
         })
     }

@@ -83,7 +83,7 @@ pub const STATUS_WARNING: i32 = 1;
 pub const STATUS_STOP: i32 = 2;
 
 /// `[controller.plugin]`: the shared library and its parameters.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PluginParams {
     /// Path of the shared library (`.so`), looked up next to the scenario file first, then in
@@ -96,7 +96,29 @@ pub struct PluginParams {
     pub log: Vec<String>,
     /// SHA-256 of the library; filled in by every run (a later run warns if it changed).
     pub library_sha256: Option<String>,
+    /// Run the plugin in a child process ([`super::isolate`]): a crash, an `exit()` or a hang
+    /// ends only this run (exit 3 naming the signal or the timeout). Default false.
+    pub isolate: bool,
+    /// Isolated plugins: the longest wall-clock time one call may take (s) before the child
+    /// is killed and the run ends (exit 3). Default 1. > 0, finite.
+    pub timeout_s: f64,
 }
+
+impl Default for PluginParams {
+    fn default() -> Self {
+        Self {
+            library: None,
+            params: BTreeMap::new(),
+            log: Vec::new(),
+            library_sha256: None,
+            isolate: false,
+            timeout_s: DEFAULT_TIMEOUT_S,
+        }
+    }
+}
+
+/// Default of `controller.plugin.timeout_s` (s).
+pub const DEFAULT_TIMEOUT_S: f64 = 1.0;
 
 impl PluginParams {
     /// True when nothing is set (the section is left out of `summary.json`).
@@ -345,6 +367,34 @@ impl PluginLibrary {
         Ok(Self { path: path.to_path_buf(), abi_version, create, reset, step, destroy, _lib: lib })
     }
 
+    /// `exoleg_create` (an isolated plugin's host process calls the library directly).
+    pub(crate) fn create_raw(&self, info: &ExolegInfo) -> *mut c_void {
+        let _guard = exit_guard::arm();
+        // SAFETY: `info` and what it points to live through the call.
+        unsafe { (self.create)(info) }
+    }
+
+    /// `exoleg_reset` of an instance this library created.
+    pub(crate) fn reset_raw(&self, handle: *mut c_void) -> i32 {
+        let _guard = exit_guard::arm();
+        // SAFETY: a live instance of this library (the caller's contract).
+        unsafe { (self.reset)(handle) }
+    }
+
+    /// `exoleg_step` of an instance this library created.
+    pub(crate) fn step_raw(&self, handle: *mut c_void, r: &ExolegReadings, c: &mut ExolegCommand) -> i32 {
+        let _guard = exit_guard::arm();
+        // SAFETY: a live instance; both structs are sized and valid through the call.
+        unsafe { (self.step)(handle, r, c) }
+    }
+
+    /// `exoleg_destroy` of an instance this library created (once).
+    pub(crate) fn destroy_raw(&self, handle: *mut c_void) {
+        let _guard = exit_guard::arm();
+        // SAFETY: a live instance, destroyed once (the caller's contract).
+        unsafe { (self.destroy)(handle) }
+    }
+
     /// The library's file name, for messages.
     pub fn name(&self) -> String {
         self.path.file_name().map_or_else(|| self.path.display().to_string(), |n| n.to_string_lossy().into_owned())
@@ -429,6 +479,12 @@ pub mod exit_guard {
         Armed(())
     }
 
+    /// Stand aside for good: a plugin's `exit()` is this process's exit status (an isolated
+    /// plugin's host process, whose status the run reads).
+    pub fn stand_aside() {
+        EXITING.store(true, Ordering::SeqCst);
+    }
+
     /// Exit the process with `code` as exoleg means it (the guard stands aside).
     pub fn exit(code: i32) -> ! {
         EXITING.store(true, Ordering::SeqCst);
@@ -453,13 +509,16 @@ pub struct HostInfo {
     pub seed: u64,
 }
 
-/// A plugin ready to be instantiated for each run: the library, its parameters, its logs.
+/// A plugin ready to be instantiated for each run: the library, its parameters, its logs, and
+/// whether each instance runs in a child process.
 #[derive(Debug)]
 pub struct PluginSetup {
     lib: Arc<PluginLibrary>,
     params: Vec<(CString, f64)>,
     log: Vec<String>,
     info: HostInfo,
+    /// `controller.plugin.isolate`: the longest call (s) of an isolated instance; None in-process.
+    isolate_timeout_s: Option<f64>,
 }
 
 impl PluginSetup {
@@ -469,45 +528,131 @@ impl PluginSetup {
         if p.log.len() > PLUGIN_LOG_LEN {
             return Err(("controller.plugin.log".into(), format!("at most {PLUGIN_LOG_LEN} names")));
         }
-        Ok(Self { lib, params, log: p.log.clone(), info })
+        let isolate_timeout_s = p.isolate.then_some(p.timeout_s);
+        Ok(Self { lib, params, log: p.log.clone(), info, isolate_timeout_s })
     }
 
-    /// A new instance (`exoleg_create`); an error if the plugin refuses its parameters.
-    pub fn instance(self: &Arc<Self>) -> Result<PluginController, String> {
-        let params: Vec<ExolegParam> =
-            self.params.iter().map(|(n, v)| ExolegParam { name: n.as_ptr(), value: *v }).collect();
+    /// The library.
+    pub fn library(&self) -> &Arc<PluginLibrary> {
+        &self.lib
+    }
+
+    /// The names of the channels the plugin logs.
+    pub fn log_names(&self) -> &[String] {
+        &self.log
+    }
+
+    /// What a peer outside the process needs to create the same instance (the wire's SETUP).
+    pub fn wire_setup(&self) -> InstanceSetup {
         let c = &self.info.nominal.c;
-        let info = ExolegInfo {
-            size: std::mem::size_of::<ExolegInfo>() as u32,
-            abi_version: (ABI_MAJOR << 16) | ABI_MINOR,
+        InstanceSetup {
             sample_period_s: self.info.period_s,
             valve_command_limit: self.info.limit.0,
-            nominal_n1: c.n1,
-            nominal_n2: c.n2,
-            nominal_n3: c.n3,
-            nominal_tau_s: c.tau_s,
-            nominal_k_s: c.k_s,
+            nominal: [c.n1, c.n2, c.n3, c.tau_s, c.k_s],
             seed: self.info.seed,
-            n_params: params.len() as u32,
-            reserved: 0,
-            params: params.as_ptr(),
-        };
-        let _guard = exit_guard::arm();
-        // SAFETY: `info` and the parameters it points to live through the call.
-        let handle = unsafe { (self.lib.create)(&info) };
-        if handle.is_null() {
-            return Err(format!("{}: exoleg_create returned NULL (it refused its parameters)", self.lib.name()));
+            params: self.params.iter().map(|(n, v)| (n.to_string_lossy().into_owned(), *v)).collect(),
         }
+    }
+
+    /// `controller.plugin.isolate`: the longest call (s) of an isolated instance, None when the
+    /// plugin runs in-process.
+    pub fn isolate_timeout_s(&self) -> Option<f64> {
+        self.isolate_timeout_s
+    }
+
+    /// A new in-process instance (`exoleg_create`); an error if the plugin refuses its
+    /// parameters.
+    pub fn instance(self: &Arc<Self>) -> Result<PluginController, String> {
+        let handle = create_instance(&self.lib, &self.wire_setup())?;
         Ok(PluginController {
             setup: self.clone(),
             handle,
-            name: self.lib.name(),
             readings: ExolegReadings::default(),
             command: ExolegCommand::default(),
             reset: false,
-            warnings: 0,
-            last_warning: None,
+            status: StatusCount::new(self.lib.name()),
+            compute_s: Vec::new(),
         })
+    }
+}
+
+/// What creating an instance takes besides the library: the host's figures and the
+/// parameters (an outside peer gets it in the wire's SETUP).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InstanceSetup {
+    /// Sample period (s).
+    pub sample_period_s: f64,
+    /// Valve command limit (0 = none).
+    pub valve_command_limit: f64,
+    /// The nominal model: n1 (N/m), n2 (N/m), n3 (1/s), tau (s), k_s (m).
+    pub nominal: [f64; 5],
+    /// The run's seed.
+    pub seed: u64,
+    /// The parameters, by name.
+    pub params: Vec<(String, f64)>,
+}
+
+/// `exoleg_create` with the figures and parameters of `setup` (in-process, and in an isolated
+/// plugin's host process: the same call either way). An error if it returns NULL.
+pub(crate) fn create_instance(lib: &PluginLibrary, setup: &InstanceSetup) -> Result<*mut c_void, String> {
+    let names: Vec<CString> =
+        setup.params.iter().map(|(n, _)| CString::new(n.replace('\0', "")).unwrap_or_default()).collect();
+    let params: Vec<ExolegParam> =
+        names.iter().zip(&setup.params).map(|(n, (_, v))| ExolegParam { name: n.as_ptr(), value: *v }).collect();
+    let [n1, n2, n3, tau_s, k_s] = setup.nominal;
+    let info = ExolegInfo {
+        size: std::mem::size_of::<ExolegInfo>() as u32,
+        abi_version: (ABI_MAJOR << 16) | ABI_MINOR,
+        sample_period_s: setup.sample_period_s,
+        valve_command_limit: setup.valve_command_limit,
+        nominal_n1: n1,
+        nominal_n2: n2,
+        nominal_n3: n3,
+        nominal_tau_s: tau_s,
+        nominal_k_s: k_s,
+        seed: setup.seed,
+        n_params: params.len() as u32,
+        reserved: 0,
+        params: params.as_ptr(),
+    };
+    let handle = lib.create_raw(&info);
+    if handle.is_null() {
+        return Err(format!("{}: exoleg_create returned NULL (it refused its parameters)", lib.name()));
+    }
+    Ok(handle)
+}
+
+/// A plugin's status codes as the run takes them: warnings counted (the last message kept),
+/// a stop or an unknown code an error naming the call.
+#[derive(Debug, Clone)]
+pub(crate) struct StatusCount {
+    /// The plugin's name for messages.
+    pub name: String,
+    pub warnings: usize,
+    pub last_warning: Option<String>,
+}
+
+impl StatusCount {
+    pub fn new(name: String) -> Self {
+        Self { name, warnings: 0, last_warning: None }
+    }
+
+    /// Take `status` from `call`, with the plugin's `message` (read only when needed).
+    pub fn take(&mut self, call: &str, status: i32, message: impl FnOnce() -> String) -> Result<(), ControlStop> {
+        match status {
+            STATUS_OK => Ok(()),
+            STATUS_WARNING => {
+                self.warnings += 1;
+                self.last_warning = Some(message());
+                Ok(())
+            }
+            STATUS_STOP => Err(ControlStop {
+                message: format!("plugin {} stopped the run in {call} (status 2): {}", self.name, message()),
+            }),
+            other => Err(ControlStop {
+                message: format!("plugin {} returned the unknown status {other} from {call}", self.name),
+            }),
+        }
     }
 }
 
@@ -570,89 +715,80 @@ impl Default for ExolegReadings {
     }
 }
 
+/// The ABI's readings of a sample.
+pub fn readings_of(s: &SampleInput) -> ExolegReadings {
+    let (y, d) = (&s.y, &s.device);
+    let (valid, counts) = counts_of(&s.counts.0);
+    let (device_counts_valid, device_counts) = counts_of(&s.device_counts.0);
+    ExolegReadings {
+        size: std::mem::size_of::<ExolegReadings>() as u32,
+        counts_valid: valid,
+        t_s: s.t_s,
+        period_s: s.period_s,
+        force_n: y.force_n,
+        force_rate_n_per_s: y.force_rate_n_per_s,
+        spool_m: y.spool_m,
+        piston_m: y.piston_m,
+        piston_velocity_m_s: y.piston_velocity_m_s,
+        piston_accel_m_s2: y.piston_accel_m_s2,
+        knee_rad: y.knee_rad,
+        knee_rate_rad_s: y.knee_rate_rad_s,
+        ref_force_n: s.r.value,
+        ref_force_rate_n_per_s: s.r.rate,
+        ref_force_accel_n_per_s2: s.r.accel,
+        next_ref_force_n: s.r_next.value,
+        next_ref_force_rate_n_per_s: s.r_next.rate,
+        next_ref_force_accel_n_per_s2: s.r_next.accel,
+        valve_command_limit: s.valve_limit.0,
+        counts,
+        hip_rad: d.hip_rad,
+        hip_rate_rad_s: d.hip_rate_rad_s,
+        thigh_accel_m_s2: d.thigh_accel_m_s2,
+        thigh_gyro_rad_s: d.thigh_gyro_rad_s,
+        shank_accel_m_s2: d.shank_accel_m_s2,
+        shank_gyro_rad_s: d.shank_gyro_rad_s,
+        heel_force_n: d.heel_force_n,
+        forefoot_force_n: d.forefoot_force_n,
+        foot_contact: d.foot_contact,
+        thigh_cuff_force_n: d.thigh_cuff_force_n,
+        shank_cuff_force_n: d.shank_cuff_force_n,
+        pressure_a_pa: d.pressure_a_pa,
+        pressure_b_pa: d.pressure_b_pa,
+        supply_pressure_pa: d.supply_pressure_pa,
+        load_pressure_pa: d.load_pressure_pa,
+        device_counts_valid,
+        reserved1: 0,
+        device_counts,
+    }
+}
+
 /// One plugin instance: a [`DiscreteController`].
 pub struct PluginController {
     setup: Arc<PluginSetup>,
     handle: *mut c_void,
-    name: String,
     readings: ExolegReadings,
     command: ExolegCommand,
     reset: bool,
-    warnings: usize,
-    last_warning: Option<String>,
+    status: StatusCount,
+    /// Wall time of each `exoleg_step` call (s): measured, reported, never in the physics.
+    compute_s: Vec<f64>,
 }
 
 // SAFETY: the ABI requires instances without global state, used by one thread at a time;
 // the controller is owned by one run, which moves between threads only between calls.
 unsafe impl Send for PluginController {}
 
-impl PluginController {
-    fn message(&self) -> String {
-        message_text(&self.command.message)
+/// The output of a plugin's command (a non-finite valve command stops the run).
+pub(crate) fn output_of(name: &str, c: &ExolegCommand, status: i32) -> Result<ControlOutput, ControlStop> {
+    let u = c.valve_command;
+    if !u.is_finite() {
+        return Err(ControlStop { message: format!("plugin {name} returned the valve command {u} (status {status})") });
     }
-
-    fn fill(&mut self, s: &SampleInput) {
-        let (y, r, d) = (&s.y, &self.readings, &s.device);
-        let (valid, counts) = counts_of(&s.counts.0);
-        let (device_counts_valid, device_counts) = counts_of(&s.device_counts.0);
-        self.readings = ExolegReadings {
-            size: r.size,
-            counts_valid: valid,
-            t_s: s.t_s,
-            period_s: s.period_s,
-            force_n: y.force_n,
-            force_rate_n_per_s: y.force_rate_n_per_s,
-            spool_m: y.spool_m,
-            piston_m: y.piston_m,
-            piston_velocity_m_s: y.piston_velocity_m_s,
-            piston_accel_m_s2: y.piston_accel_m_s2,
-            knee_rad: y.knee_rad,
-            knee_rate_rad_s: y.knee_rate_rad_s,
-            ref_force_n: s.r.value,
-            ref_force_rate_n_per_s: s.r.rate,
-            ref_force_accel_n_per_s2: s.r.accel,
-            next_ref_force_n: s.r_next.value,
-            next_ref_force_rate_n_per_s: s.r_next.rate,
-            next_ref_force_accel_n_per_s2: s.r_next.accel,
-            valve_command_limit: s.valve_limit.0,
-            counts,
-            hip_rad: d.hip_rad,
-            hip_rate_rad_s: d.hip_rate_rad_s,
-            thigh_accel_m_s2: d.thigh_accel_m_s2,
-            thigh_gyro_rad_s: d.thigh_gyro_rad_s,
-            shank_accel_m_s2: d.shank_accel_m_s2,
-            shank_gyro_rad_s: d.shank_gyro_rad_s,
-            heel_force_n: d.heel_force_n,
-            forefoot_force_n: d.forefoot_force_n,
-            foot_contact: d.foot_contact,
-            thigh_cuff_force_n: d.thigh_cuff_force_n,
-            shank_cuff_force_n: d.shank_cuff_force_n,
-            pressure_a_pa: d.pressure_a_pa,
-            pressure_b_pa: d.pressure_b_pa,
-            supply_pressure_pa: d.supply_pressure_pa,
-            load_pressure_pa: d.load_pressure_pa,
-            device_counts_valid,
-            reserved1: 0,
-            device_counts,
-        };
-    }
-
-    fn status(&mut self, call: &str, status: i32) -> Result<(), ControlStop> {
-        match status {
-            STATUS_OK => Ok(()),
-            STATUS_WARNING => {
-                self.warnings += 1;
-                self.last_warning = Some(self.message());
-                Ok(())
-            }
-            STATUS_STOP => Err(ControlStop {
-                message: format!("plugin {} stopped the run in {call} (status 2): {}", self.name, self.message()),
-            }),
-            other => Err(ControlStop {
-                message: format!("plugin {} returned the unknown status {other} from {call}", self.name),
-            }),
-        }
-    }
+    Ok(ControlOutput {
+        valve_command: u,
+        disturbance_estimate_n_per_s2: c.disturbance_estimate_n_per_s2,
+        ..Default::default()
+    })
 }
 
 impl DiscreteController for PluginController {
@@ -661,29 +797,21 @@ impl DiscreteController for PluginController {
     }
 
     fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
-        let _guard = exit_guard::arm();
         self.command = ExolegCommand::default();
+        let lib = &self.setup.lib;
         if !self.reset {
             self.reset = true;
-            // SAFETY: a live instance of this library.
-            let st = unsafe { (self.setup.lib.reset)(self.handle) };
-            self.status("exoleg_reset", st)?;
+            let st = lib.reset_raw(self.handle);
+            let m = message_text(&self.command.message);
+            self.status.take("exoleg_reset", st, || m)?;
         }
-        self.fill(s);
-        // SAFETY: a live instance; both structs are ours, sized and valid through the call.
-        let st = unsafe { (self.setup.lib.step)(self.handle, &self.readings, &mut self.command) };
-        self.status("exoleg_step", st)?;
-        let u = self.command.valve_command;
-        if !u.is_finite() {
-            return Err(ControlStop {
-                message: format!("plugin {} returned the valve command {u} (status {st})", self.name),
-            });
-        }
-        Ok(ControlOutput {
-            valve_command: u,
-            disturbance_estimate_n_per_s2: self.command.disturbance_estimate_n_per_s2,
-            ..Default::default()
-        })
+        self.readings = readings_of(s);
+        let t0 = std::time::Instant::now();
+        let st = lib.step_raw(self.handle, &self.readings, &mut self.command);
+        self.compute_s.push(t0.elapsed().as_secs_f64());
+        let cmd = &self.command;
+        self.status.take("exoleg_step", st, || message_text(&cmd.message))?;
+        output_of(&self.status.name, &self.command, st)
     }
 
     fn log_names(&self) -> Vec<String> {
@@ -697,14 +825,17 @@ impl DiscreteController for PluginController {
     }
 
     fn warnings(&self) -> (usize, Option<String>) {
-        (self.warnings, self.last_warning.clone())
+        (self.status.warnings, self.status.last_warning.clone())
+    }
+
+    fn compute_times_s(&self) -> &[f64] {
+        &self.compute_s
     }
 }
 
 impl Drop for PluginController {
     fn drop(&mut self) {
-        let _guard = exit_guard::arm();
-        // SAFETY: the instance was created by this library and is destroyed once.
-        unsafe { (self.setup.lib.destroy)(self.handle) }
+        // The instance was created by this library and is destroyed once.
+        self.setup.lib.destroy_raw(self.handle);
     }
 }

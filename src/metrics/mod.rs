@@ -172,6 +172,17 @@ pub struct Summary {
     /// Samples a controller flagged with a warning (a C plugin's warning status), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub controller_warnings: Option<ControllerWarnings>,
+    /// Wall time of the controller's computations, measured (a C plugin's `exoleg_step`
+    /// calls, in-process or isolated; a HIL peer's own figure): `samples`, `p50_s`, `p99_s`,
+    /// `max_s`, `mean_s` (s). Measured, so it differs from run to run; never in the physics,
+    /// and left out of a study's `runs.jsonl` lines.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller_compute: Option<serde_json::Value>,
+    /// The link to a controller outside the process: an isolated plugin's round trips, a
+    /// hardware-in-the-loop peer's latency, losses, deadlines and pacing (measured; left out of
+    /// `runs.jsonl` lines).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller_link: Option<serde_json::Value>,
     /// What would hurt the wearer (leg runs; see [`safety`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub safety: Option<SafetySummary>,
@@ -563,6 +574,8 @@ impl SummaryBuilder {
             wearer: None,
             safety: None,
             controller_warnings: None,
+            controller_compute: None,
+            controller_link: None,
             end_stops: None,
             engine: None,
         }

@@ -342,6 +342,10 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
             );
         }
         crate::record::check_log_names(&ct.plugin.log).map_err(|m| c.fail("controller.plugin.log", m))?;
+        let t = ct.plugin.timeout_s;
+        if !(t.is_finite() && t > 0.0) {
+            return Err(c.fail("controller.plugin.timeout_s", format!("must be a finite number > 0 (s), got {t}")));
+        }
     }
     c.non_negative("controller.resonator_hz", ct.resonator_hz)?;
     if ct.resonator_hz > 0.0 && ct.sample_period_s > 0.0 && ct.resonator_hz >= 0.5 / ct.sample_period_s {

@@ -311,6 +311,17 @@ impl Simulation {
         }
     }
 
+    /// The controller's measured compute times (`summary.json`'s `controller_compute`) and
+    /// its link's figures (`controller_link`), when it has them.
+    pub fn controller_timing(&self) -> (Option<serde_json::Value>, Option<serde_json::Value>) {
+        match &self.control {
+            ControlBlock::Sampled(l) => l.ctrl.as_ref().map_or((None, None), |c| {
+                (crate::control::timing::TimingStats::json(c.compute_times_s()), c.link_report())
+            }),
+            ControlBlock::Continuous(_) => (None, None),
+        }
+    }
+
     /// Number of steps taken.
     pub fn steps_taken(&self) -> usize {
         self.k

@@ -277,6 +277,8 @@ fn summary_without_timing<S: serde::Serializer>(s: &Option<Summary>, ser: S) -> 
     if let Some(o) = v.as_object_mut() {
         o.remove("wall_time_s");
         o.remove("steps_per_second");
+        o.remove("controller_compute");
+        o.remove("controller_link");
     }
     v.serialize(ser)
 }

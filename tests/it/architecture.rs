@@ -19,7 +19,7 @@ const LAYERS: [&[&str]; 11] = [
     &["disturbance", "leg"],
     &["reference"],
     &["human", "control", "metrics"],
-    &["plant"],
+    &["plant", "hil"],
     &["sim"],
     &["session", "output"],
     &["scenario"],
