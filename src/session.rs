@@ -211,6 +211,7 @@ impl<S: RecordSink> Session<S> {
                 Some(crate::metrics::ControllerWarnings { samples: n, last: last.unwrap_or_default() });
         }
         (summary.controller_compute, summary.controller_link) = sim.controller_timing();
+        summary.compute_model = sim.compute_summary().and_then(|c| serde_json::to_value(c).ok());
         Ok(Finished { summary, design: sim.controller_design(), sink: self.sink })
     }
 }

@@ -139,6 +139,46 @@ pub struct ControllerParams {
     /// to `actuator.failsafe` and the run goes on: the controller's reaction to a fault,
     /// scored; the `faults` campaign's).
     pub on_stop: OnStop,
+    /// The firmware's modelled computation on the target (s): a sampled controller's command
+    /// takes effect this long after its sample instant instead of at it (rounded up to whole
+    /// `sim.dt_s` steps). Modelled, never measured: the same run gives the same physics.
+    /// Default 0. >= 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub compute_delay_s: f64,
+    /// A modelled extra time per sample, uniform in [0, this] from the run's seed (s).
+    /// Default 0. >= 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub compute_jitter_s: f64,
+    /// The time (s) a sample's modelled computation may take. Default: the sample period.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compute_budget_s: Option<f64>,
+    /// What a sample over its budget does: `apply_late` (default: its command takes effect
+    /// when it is done), `hold` (its command is dropped, the last one holds) or `stop` (the
+    /// controller stops, as `on_stop` says).
+    #[serde(skip_serializing_if = "is_default_policy")]
+    pub overrun_policy: OverrunPolicy,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+fn is_default_policy(p: &OverrunPolicy) -> bool {
+    *p == OverrunPolicy::ApplyLate
+}
+
+/// `controller.overrun_policy`: what a sample whose modelled computation exceeds
+/// `controller.compute_budget_s` does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum OverrunPolicy {
+    /// Its command takes effect when it is done, late.
+    #[default]
+    ApplyLate,
+    /// Its command is dropped; the last one holds.
+    Hold,
+    /// The controller stops (`controller.on_stop`: the run ends, or the failsafe).
+    Stop,
 }
 
 /// `controller.on_stop`.
@@ -170,6 +210,10 @@ impl Default for ControllerParams {
             nominal_leg: NominalLeg::default(),
             plugin: PluginParams::default(),
             on_stop: OnStop::End,
+            compute_delay_s: 0.0,
+            compute_jitter_s: 0.0,
+            compute_budget_s: None,
+            overrun_policy: OverrunPolicy::ApplyLate,
         }
     }
 }

@@ -183,6 +183,11 @@ pub struct Summary {
     /// `runs.jsonl` lines).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub controller_link: Option<serde_json::Value>,
+    /// What the controller's modelled computation did (`controller.compute_delay_s`, ...):
+    /// `samples`, `max_time_s`, `max_delay_steps`, `overruns`, `dropped`. Modelled, so the
+    /// same for the same run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compute_model: Option<serde_json::Value>,
     /// What would hurt the wearer (leg runs; see [`safety`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub safety: Option<SafetySummary>,
@@ -575,6 +580,7 @@ impl SummaryBuilder {
             safety: None,
             controller_warnings: None,
             controller_compute: None,
+            compute_model: None,
             controller_link: None,
             end_stops: None,
             engine: None,

@@ -735,6 +735,7 @@ impl Scenario {
         let model = Model {
             faults,
             on_stop: f.controller.on_stop,
+            compute: crate::sim::ComputeModel::of(&f.controller),
             device_columns: leg.is_some() && device.is_some(),
             device,
             source_name: self.source_name.clone(),

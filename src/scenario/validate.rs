@@ -296,7 +296,29 @@ fn no_desired_force(c: &Check, f: &ScenarioFile) -> Result<()> {
 }
 
 /// `[controller]`.
+/// `controller.compute_*`: finite, non-negative, for a sampled controller only.
+fn compute_model(c: &Check, f: &ScenarioFile) -> Result<()> {
+    let ct = &f.controller;
+    c.non_negative("controller.compute_delay_s", ct.compute_delay_s)?;
+    c.non_negative("controller.compute_jitter_s", ct.compute_jitter_s)?;
+    if let Some(b) = ct.compute_budget_s {
+        c.positive("controller.compute_budget_s", b)?;
+    }
+    let modelled = ct.compute_delay_s > 0.0 || ct.compute_jitter_s > 0.0 || ct.compute_budget_s.is_some();
+    if modelled && ct.sample_period_s == 0.0 {
+        return Err(c.fail(
+            "controller.compute_delay_s",
+            "a modelled computation needs a sampled controller (controller.sample_period_s > 0)".to_string(),
+        ));
+    }
+    if ct.compute_delay_s + ct.compute_jitter_s > f.sim.duration_s {
+        return Err(c.fail("controller.compute_delay_s", "with compute_jitter_s longer than the run".to_string()));
+    }
+    Ok(())
+}
+
 fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
+    compute_model(c, f)?;
     let ct = &f.controller;
     c.positive("controller.gamma", ct.gamma)?;
     c.positive("controller.k", ct.k)?;

@@ -41,12 +41,14 @@
 //! controller state's derivative; the cylinder's derivatives with its hard stops.
 //! After the last step the final state is recorded, so a run has `steps + 1` rows.
 
+mod compute;
 mod faults;
 mod model;
 mod stage;
 mod state;
 
 pub use crate::integrator::Integrator;
+pub use compute::{ComputeModel, ComputeSummary};
 pub use model::{is_walking, Model};
 pub use state::{PistonState, State, PLANT_LEN};
 
@@ -155,6 +157,8 @@ pub struct Simulation {
     substepped_steps: usize,
     /// The run's faults as they happen.
     faults: faults::FaultRun,
+    /// The controller's modelled computation as it goes.
+    compute: compute::ComputeRun,
 }
 
 /// Build the plant of a model.
@@ -235,6 +239,7 @@ impl Simulation {
         let held = Held { output, events: Self::gait_events(&sc), ..Default::default() };
         Ok(Self {
             faults: faults::FaultRun::new(&sc.faults, sc.seed),
+            compute: compute::ComputeRun::new(sc.seed),
             controller_state: vec![0.0; controller_names.len()],
             mech_state: vec![0.0; mech_names.len()],
             mech_names,
@@ -366,6 +371,9 @@ impl Simulation {
             return;
         }
         self.begun = Some(self.k);
+        if self.sc.compute.is_some() {
+            self.apply_computed();
+        }
         self.held.predictor = if self.hydraulic() { self.plant.piston_predictor() } else { None };
         if let Some(p) = &self.held.predictor {
             self.state.piston = PistonState { position_m: p.position_m, velocity_m_s: p.velocity_m_s };
@@ -521,16 +529,21 @@ impl Simulation {
         };
         let out = self.sc.valve_limit.apply(out);
         let out = if self.sc.faults.is_empty() && self.faults.stopped.is_none() { out } else { self.timed_output(out) };
-        let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
-        if l.awaiting != Some(self.k) {
-            return Err(Error::Usage(format!("hold() at step {} without sample() first", self.k)));
+        if let ControlBlock::Sampled(l) = &self.control {
+            if l.awaiting != Some(self.k) {
+                return Err(Error::Usage(format!("hold() at step {} without sample() first", self.k)));
+            }
         }
+        let now = self.computed(out)?;
+        let ControlBlock::Sampled(l) = &mut self.control else { return Ok(()) };
         l.awaiting = None;
-        l.hold.set(out);
         if let Some(c) = &l.ctrl {
             c.log_values(&mut l.log);
         }
-        self.held.output = Some(out);
+        if let compute::Computed::Now(out) = now {
+            l.hold.set(out);
+            self.held.output = Some(out);
+        }
         Ok(())
     }
 

@@ -69,6 +69,9 @@ pub struct Model {
     pub faults: Vec<crate::faults::Fault>,
     /// What a sampled controller's stop does (`controller.on_stop`).
     pub on_stop: crate::control::OnStop,
+    /// The controller's modelled computation on the target (None: its command takes effect
+    /// at its sample instant).
+    pub compute: Option<super::ComputeModel>,
     /// The safety verdicts' limits (`[safety]`).
     pub safety: crate::metrics::SafetyLimits,
     /// The cuff interaction-force limits of the wearer's figures (`[cuff_limits]`).

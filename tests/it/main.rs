@@ -6,6 +6,7 @@ mod animate;
 mod architecture;
 mod bench_motion;
 mod cli;
+mod compute_model;
 mod device_sensors;
 mod end_stops;
 mod faults;
