@@ -224,7 +224,7 @@ impl ModeTally {
         let m = o.margin_pct.unwrap_or(f64::NEG_INFINITY);
         if self.worst.as_ref().is_none_or(|w| m < w.0) {
             let text = match (&o.error, o.uses.iter().max_by(|a, b| a.1.total_cmp(&b.1))) {
-                (Some(e), _) => format!("failed: {}", e.chars().take(60).collect::<String>()),
+                (Some(e), _) => format!("failed: {}", short(e, 72)),
                 (None, Some(u)) => format!("{} at {:.0} % of its limit", u.0, 100.0 * u.1),
                 (None, None) => "no criterion".into(),
             };
@@ -374,4 +374,14 @@ pub fn write_outputs(
     let legend = format!("worst margin to a safety limit over the severities (% of the limit left; < 0 broken); ! a fault-induced hazard; {onset_what}");
     crate::output::heatmap_png(&dir.join("faults.png"), &rep.title, &names, &cols, &cells, &marks, &legend)?;
     Ok(rep)
+}
+
+/// `text` in at most about `n` characters, cut at a word with " ..." when longer.
+fn short(text: &str, n: usize) -> String {
+    if text.chars().count() <= n {
+        return text.to_string();
+    }
+    let head: String = text.chars().take(n).collect();
+    let cut = head.rfind(' ').unwrap_or(head.len());
+    format!("{} ...", head[..cut].trim_end_matches([':', ',']))
 }
