@@ -189,3 +189,30 @@ fn hostile_command_lines() {
 fn fault_matrix_corpus() {
     replay("fault_matrix", |text| exoleg::study::faults::parse_matrix("matrix.toml", text).map(|_| ()));
 }
+
+/// The out-of-process protocol's datagrams (`tests/corpus/wire/`, bytes): each decodes or is
+/// refused with a one-line error naming what is wrong, as `expected.txt` says; a decoded one
+/// encodes back to what it was (the fuzz target's check).
+#[test]
+fn wire_corpus() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/wire");
+    let expected = std::fs::read_to_string(dir.join("expected.txt")).unwrap();
+    let mut checked = 0;
+    for l in expected.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
+        let mut parts = l.splitn(3, ' ');
+        let (name, outcome, needle) = (parts.next().unwrap(), parts.next().unwrap_or(""), parts.next().unwrap_or(""));
+        let bytes = std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let got = std::panic::catch_unwind(|| exoleg::control::wire::fuzz_wire(&bytes)).expect("the decoder panicked");
+        match (outcome, got) {
+            ("accepted", Ok(())) => {}
+            ("refused", Err(e)) => {
+                check_message(name, &e);
+                assert!(e.contains(needle), "{name}: the error does not name `{needle}`: {e}");
+            }
+            (o, r) => panic!("{name}: expected {o}, got {r:?}"),
+        }
+        checked += 1;
+    }
+    let files = std::fs::read_dir(&dir).unwrap().count() - 1;
+    assert_eq!(checked, files, "every file has its line in expected.txt");
+}
