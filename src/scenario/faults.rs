@@ -115,6 +115,15 @@ fn within(key: &str, name: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Res
     }
 }
 
+/// A delay's or an overrun's `samples`: given, 1..=100000.
+fn samples(key: &str, f: &FaultSpec) -> Res<usize> {
+    let n = f.samples.ok_or_else(|| (format!("{key}.samples"), "this kind needs it".to_string()))?;
+    if !(1..=100_000).contains(&n) {
+        return Err((format!("{key}.samples"), format!("must be 1..=100000, got {n}")));
+    }
+    Ok(n)
+}
+
 /// A sensor fault's kind on channel `ch`.
 fn sensor_kind(key: &str, f: &FaultSpec) -> Res<S> {
     let big = f64::MAX;
@@ -135,13 +144,7 @@ fn sensor_kind(key: &str, f: &FaultSpec) -> Res<S> {
             probability: within(key, "probability", need(key, "probability", f.probability)?, 0.0, 1.0, false)?,
         },
         "saturation" => S::Saturation(within(key, "level", need(key, "level", f.level)?, 0.0, big, true)?),
-        "delay" => {
-            let n = f.samples.ok_or_else(|| (format!("{key}.samples"), "this kind needs it".to_string()))?;
-            if !(1..=100_000).contains(&n) {
-                return Err((format!("{key}.samples"), format!("must be 1..=100000, got {n}")));
-            }
-            S::Delay(n)
-        }
+        "delay" => S::Delay(samples(key, f)?),
         k => {
             return Err((
                 format!("{key}.kind"),
@@ -183,13 +186,7 @@ fn other_kind(key: &str, target: &str, f: &FaultSpec) -> Res<FaultKind> {
         ("supply", _) => return bad("loss"),
         ("power", "loss") => FaultKind::Actuator(A::PowerLoss),
         ("power", _) => return bad("loss"),
-        ("controller", "overrun") => {
-            let n = f.samples.ok_or_else(|| (format!("{key}.samples"), "this kind needs it".to_string()))?;
-            if !(1..=100_000).contains(&n) {
-                return Err((format!("{key}.samples"), format!("must be 1..=100000, got {n}")));
-            }
-            FaultKind::Controller(C::Overrun(n))
-        }
+        ("controller", "overrun") => FaultKind::Controller(C::Overrun(samples(key, f)?)),
         ("controller", "skip") => FaultKind::Controller(C::Skip),
         ("controller", "lost") => FaultKind::Controller(C::Lost(within(
             key,

@@ -303,3 +303,15 @@ fn the_device_presets_noise_matches_its_configuration() {
     println!("worst: mean {worst_mean:.4}, sd {worst_sd:.4}");
     assert!(worst_mean < 0.05 && worst_sd < 0.05, "{worst_mean} {worst_sd}");
 }
+
+/// The device sensors' benchmark example (examples/bench_device_sensors.rs, built by `cargo
+/// test`) runs: one stride of each variant.
+#[test]
+fn the_device_sensors_benchmark_example_runs() {
+    let dir = std::path::Path::new(&crate::common::exe()).parent().unwrap().join("examples");
+    let exe = dir.join("bench_device_sensors");
+    for variant in ["none", "ideal", "device"] {
+        let o = std::process::Command::new(&exe).args([variant, "1"]).output().expect("the example runs");
+        assert!(o.status.success(), "{variant}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+}
