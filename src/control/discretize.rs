@@ -38,7 +38,17 @@ impl SampledLti {
 
     /// One step: `Phi x + Gamma u + G0 w0 + G1 w1`.
     pub fn step(&self, x: &DVector<f64>, u: f64, w0: f64, w1: f64) -> DVector<f64> {
-        &self.phi * x + &self.gamma * u + &self.g0 * w0 + &self.g1 * w1
+        let mut out = DVector::zeros(x.len());
+        self.step_into(x, u, w0, w1, &mut out);
+        out
+    }
+
+    /// [`Self::step`] into `out` (not `x`), summed left to right.
+    pub fn step_into(&self, x: &DVector<f64>, u: f64, w0: f64, w1: f64, out: &mut DVector<f64>) {
+        self.phi.mul_to(x, out);
+        for i in 0..out.len() {
+            out[i] = ((out[i] + self.gamma[i] * u) + self.g0[i] * w0) + self.g1[i] * w1;
+        }
     }
 }
 

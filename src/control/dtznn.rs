@@ -79,6 +79,31 @@ pub struct DtZnn {
     v_prev: Option<f64>,
     xv_ref: f64,
     iterations: usize,
+    /// Vectors a sample reuses (no allocation per sample).
+    scratch: Scratch,
+}
+
+/// The vectors one sample works in: the measurement `y`, a measurement-sized product, and
+/// three state-sized ones.
+#[derive(Debug, Clone)]
+struct Scratch {
+    y: DVector<f64>,
+    ym: DVector<f64>,
+    n1: DVector<f64>,
+    n2: DVector<f64>,
+    n3: DVector<f64>,
+}
+
+impl Scratch {
+    fn new(m: usize, n: usize) -> Self {
+        Self {
+            y: DVector::zeros(m),
+            ym: DVector::zeros(m),
+            n1: DVector::zeros(n),
+            n2: DVector::zeros(n),
+            n3: DVector::zeros(n),
+        }
+    }
 }
 
 /// Continuous model matrices (A, B, E) of the controller's state.
@@ -169,6 +194,7 @@ impl DtZnn {
             v_prev: None,
             xv_ref: 0.0,
             iterations,
+            scratch: Scratch::new(m, n),
         })
     }
 
@@ -193,24 +219,31 @@ impl DtZnn {
     }
 
     /// Correct the prior of x(t_{k-d}) with the readings, predict to t_k; keep the next prior.
+    /// In place, with the products and sums in the order of the expressions
+    /// `innovation = y - C prior`, `delayed = prior + L innovation` (the same bits).
     fn estimate(&mut self, inp: &SampleInput, v: f64, slope: f64) {
-        let mut y = DVector::zeros(self.c_meas.nrows());
-        y[0] = inp.y.force_n;
-        if y.len() > 1 {
-            y[1] = inp.y.spool_m;
+        let sc = &mut self.scratch;
+        sc.y[0] = inp.y.force_n;
+        if sc.y.len() > 1 {
+            sc.y[1] = inp.y.spool_m;
         }
-        let prior = self.prior.clone().unwrap_or_else(|| DVector::zeros(self.n));
-        let innovation = &y - &self.c_meas * &prior;
-        let mut delayed = &prior + &self.l * innovation;
+        let prior = self.prior.get_or_insert_with(|| DVector::zeros(self.n));
+        self.c_meas.mul_to(prior, &mut sc.ym);
+        for (i, y) in sc.y.iter().enumerate() {
+            sc.ym[i] = y - sc.ym[i];
+        }
+        self.l.mul_to(&sc.ym, &mut sc.n1);
+        for (i, p) in prior.iter().enumerate() {
+            self.delayed[i] = p + sc.n1[i];
+        }
         if let Some((fdo, z)) = &mut self.fdo {
             // Discrete FDO on q: D_hat = L psi(Xi), Xi = q_hat - z, backward-Euler-free capped gain.
-            let xi = delayed[2] - *z;
+            let xi = self.delayed[2] - *z;
             let d_hat = capped_estimate(fdo, xi);
             *z += self.s.period_s * d_hat;
-            delayed[3] = d_hat;
+            self.delayed[3] = d_hat;
         }
-        self.estimate = self.ahead.predict(&self.model, &delayed, v, slope, self.s.period_s);
-        self.delayed = delayed;
+        self.ahead.predict_into(&self.model, &self.delayed, v, slope, self.s.period_s, &mut self.estimate, sc);
     }
 }
 
@@ -256,22 +289,46 @@ impl Ahead {
     }
 
     /// The oldest command `old` left the queue and `new` entered it (`commands` is the queue now).
-    fn shift(&mut self, m: &SampledModel, old: f64, new: f64, commands: &VecDeque<f64>) {
+    fn shift(&mut self, m: &SampledModel, old: f64, new: f64, commands: &VecDeque<f64>, tmp: &mut DVector<f64>) {
         self.since_exact += 1;
         if self.since_exact >= self.d {
             self.reset(m, commands);
         } else {
-            self.s_u = &m.phi * &self.s_u - &self.phi_d_gamma * old + &m.gamma * new;
+            // S_u = Phi S_u - Phi^d Gamma old + Gamma new, in that order.
+            m.phi.mul_to(&self.s_u, tmp);
+            for i in 0..tmp.len() {
+                self.s_u[i] = (tmp[i] - self.phi_d_gamma[i] * old) + m.gamma[i] * new;
+            }
         }
     }
 
-    /// The state d samples after `x` (the delayed estimate) with velocity `v` ramped at `slope`.
-    fn predict(&self, m: &SampledModel, x: &DVector<f64>, v: f64, slope: f64, h: f64) -> DVector<f64> {
+    /// Into `out`: the state d samples after `x` (the delayed estimate) with velocity `v`
+    /// ramped at `slope`, `Phi^d x + S_u + A w + B (G0 slope h)` with `w = G0 v + G1 slope`,
+    /// summed left to right.
+    fn predict_into(
+        &self,
+        m: &SampledModel,
+        x: &DVector<f64>,
+        v: f64,
+        slope: f64,
+        h: f64,
+        out: &mut DVector<f64>,
+        sc: &mut Scratch,
+    ) {
         if self.d == 0 {
-            return x.clone();
+            out.copy_from(x);
+            return;
         }
-        let w = &m.g0 * v + &m.g1 * slope;
-        &self.phi_d * x + &self.s_u + &self.a * w + &self.b * (&m.g0 * (slope * h))
+        for i in 0..sc.n1.len() {
+            sc.n1[i] = m.g0[i] * v + m.g1[i] * slope;
+            sc.n2[i] = m.g0[i] * (slope * h);
+        }
+        self.a.mul_to(&sc.n1, &mut sc.n3);
+        self.b.mul_to(&sc.n2, &mut sc.n1);
+        self.phi_d.mul_to(x, out);
+        for i in 0..out.len() {
+            out[i] = ((out[i] + self.s_u[i]) + sc.n3[i]) + sc.n1[i];
+        }
     }
 }
 
@@ -307,21 +364,23 @@ impl DiscreteController for DtZnn {
         let (phi, gam) = (&self.model.phi, &self.model.gamma);
         let g_v = self.model.g0[0] * v_now + self.model.g1[0] * slope;
         let u_ff = (inp.r_next.value - phi[(0, 0)] * inp.r.value - phi[(0, 1)] * self.xv_ref - g_v) / gam[0];
-        let mut eps = self.estimate.clone();
+        let eps = &mut self.scratch.n1;
+        eps.copy_from(&self.estimate);
         eps[0] -= inp.r.value;
         eps[1] -= self.xv_ref;
-        let u = self.s.limit.apply(ControlOutput { valve_command: u_ff - self.k.dot(&eps), ..Default::default() });
+        let u = self.s.limit.apply(ControlOutput { valve_command: u_ff - self.k.dot(eps), ..Default::default() });
         self.xv_ref = phi[(1, 1)] * self.xv_ref + gam[1] * u_ff;
         // The next prior: x(t_{k-d+1}) from the command applied over [t_{k-d}, t_{k-d+1}).
         let oldest = match self.commands.pop_front() {
             Some(old) => {
                 self.commands.push_back(u.valve_command);
-                self.ahead.shift(&self.model, old, u.valve_command, &self.commands);
+                self.ahead.shift(&self.model, old, u.valve_command, &self.commands, &mut self.scratch.n2);
                 old
             }
             None => u.valve_command,
         };
-        self.prior = Some(self.model.step(&self.delayed, oldest, v, slope));
+        let prior = self.prior.get_or_insert_with(|| DVector::zeros(self.n));
+        self.model.step_into(&self.delayed, oldest, v, slope, prior);
         // The lumped disturbance on dx2/dt the model estimates: D (+ r2 with the resonator).
         let d_hat = self.estimate[3] + if self.n == 6 { self.estimate[5] } else { 0.0 };
         Ok(ControlOutput { disturbance_estimate_n_per_s2: d_hat, rbf_output_n_per_s2: 0.0, ..u })
@@ -386,13 +445,20 @@ mod tests {
             x
         };
         let close = |a: &DVector<f64>, b: &DVector<f64>| (a - b).amax() <= 1e-9 * b.amax();
-        assert!(close(&ahead.predict(&m, &x0, v, slope, h), &direct(&q)));
+        let mut sc = Scratch::new(1, 4);
+        let mut predict = |ahead: &Ahead| {
+            let mut out = DVector::zeros(4);
+            ahead.predict_into(&m, &x0, v, slope, h, &mut out, &mut sc);
+            out
+        };
+        assert!(close(&predict(&ahead), &direct(&q)));
+        let mut tmp = DVector::zeros(4);
         for k in 0..100 {
             let new = 1e-4 * (k as f64 * 0.3).cos();
             let old = q.pop_front().unwrap();
             q.push_back(new);
-            ahead.shift(&m, old, new, &q);
-            assert!(close(&ahead.predict(&m, &x0, v, slope, h), &direct(&q)), "after {} shifts", k + 1);
+            ahead.shift(&m, old, new, &q, &mut tmp);
+            assert!(close(&predict(&ahead), &direct(&q)), "after {} shifts", k + 1);
         }
     }
 }

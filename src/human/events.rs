@@ -141,12 +141,12 @@ impl GaitEvents {
         let share_at = |pct: f64| data.other_share_at(pct / 100.0 * data.gait.stride_s);
         // The other foot leaves the ground (the data's loading ends) at its toe-off, half a
         // cycle after this leg's; it lands at its heel strike, half a cycle after this leg's.
-        let loading_len = (to - 50.0 - hs).rem_euclid(100.0);
-        let stance_len = (to - hs).rem_euclid(100.0);
+        let loading_len = crate::reference::rem_euclid_100(to - 50.0 - hs);
+        let stance_len = crate::reference::rem_euclid_100(to - hs);
         let since_hs =
             if self.stance { (t_s - self.switched_s).max(0.0) / data.gait.stride_s * 100.0 } else { f64::MAX };
         let loading = if since_hs < loading_len { share_at(hs + since_hs) } else { 0.0 };
-        let into_stance = (data.pct_at(t_s) - hs).rem_euclid(100.0);
+        let into_stance = crate::reference::rem_euclid_100(data.pct_at(t_s) - hs);
         // After the data's toe-off the data's share is 1: a foot still on the ground then is
         // late (the other leg has the body); from mid-swing on it is early (only the loading
         // curve from its own heel strike applies).

@@ -64,7 +64,8 @@ pub const STATE_NAMES: [&str; NX] = [
     "ankle_rate_rad_s",
 ];
 
-/// Links whose kinematics live on the stack; a leg with more takes a heap buffer.
+/// Links a test's kinematics buffer holds.
+#[cfg(test)]
 const STACK_LINKS: usize = 16;
 /// Most links the engine takes.
 const MAX_LINKS: usize = 1024;
@@ -248,6 +249,22 @@ pub struct StepStart {
     pub links: [crate::sensors::SegmentState; 3],
 }
 
+/// What [`WalkerModel::step_start`] computed at a step's state that the step's first
+/// evaluation, at the same state, needs again: the links' kinematics, the mass matrix and its
+/// locked Cholesky factor, and the contact's generalized forces (their friction anchors as the
+/// start set them). [`WalkerModel::evaluate_from`] uses them when its state is this one (bit
+/// for bit), and gives the same bits as [`WalkerModel::evaluate`].
+#[derive(Debug, Clone, Default)]
+pub struct StartCache {
+    x: Option<[f64; NX]>,
+    kin: Vec<Kin>,
+    m: [[f64; NG]; NG],
+    l: [[f64; NG]; NG],
+    /// The touching spheres' generalized forces, in the order the contact adds them.
+    contact_q: Vec<[f64; NG]>,
+    contact: ContactReading,
+}
+
 /// The result of one evaluation.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Evaluation {
@@ -363,15 +380,19 @@ impl WalkerModel {
         super::reduced_knee_model::table_at(&self.table, self.lo, self.step, k)
     }
 
-    /// A buffer for every link's kinematics: `stack` when the leg fits, else `heap`.
-    fn kin_buffer<'a>(&self, stack: &'a mut [Kin; STACK_LINKS], heap: &'a mut Vec<Kin>) -> &'a mut [Kin] {
-        let n = self.links.len();
-        if n <= STACK_LINKS {
-            &mut stack[..n]
-        } else {
-            heap.resize(n, Kin::default());
-            heap
+    /// `f` with a buffer for every link's kinematics (this thread's, kept between calls: a
+    /// stage writes every entry it reads, from the root down, before reading it).
+    fn with_kin<R>(&self, f: impl FnOnce(&mut [Kin]) -> R) -> R {
+        thread_local! {
+            static KIN: std::cell::RefCell<Vec<Kin>> = const { std::cell::RefCell::new(Vec::new()) };
         }
+        let n = self.links.len();
+        KIN.with_borrow_mut(|buf| {
+            if buf.len() < n {
+                buf.resize(n, Kin::default());
+            }
+            f(&mut buf[..n])
+        })
     }
 
     /// Kinematics of every link frame at state `x` into `out` (indexed like the links).
@@ -399,28 +420,23 @@ impl WalkerModel {
                 Coord::Loop(c) => (lp[c], lp[c + 1] * kd, (KNEE - HIP, lp[c + 1]), lp[c + 2] * kd * kd),
                 Coord::Ankle => (g[ANKLE], gd[ANKLE], (ANKLE - HIP, 1.0), 0.0),
             };
-            let p = out[j.parent];
-            let mut c = p;
+            // Built from the parent in place (a copy of the whole frame per joint showed in the
+            // profile).
+            let p = &out[j.parent];
             let o = p.rot(j.origin.t);
-            if j.sign != 0.0 || j.coord == Coord::Zero {
+            let mut c = if j.sign != 0.0 || j.coord == Coord::Zero {
                 let (_, v, jt, bt) = p.point(o);
-                c.t = p.t.plus(o);
-                c.v = v;
-                c.w = p.w + j.sign * qd;
-                c.jt = jt;
-                c.ja[grad.0] += j.sign * grad.1;
-                c.bt = bt;
-                c.ba = p.ba + j.sign * qb;
+                let mut ja = p.ja;
+                ja[grad.0] += j.sign * grad.1;
+                Kin { t: p.t.plus(o), cs: p.cs, v, w: p.w + j.sign * qd, jt, ja, bt, ba: p.ba + j.sign * qb }
             } else {
                 let e = p.rot(j.slide);
                 let u = o.plus(e.scale(q));
                 let (t, v, mut jt, bt) = p.point(u);
                 jt[grad.0] = jt[grad.0].plus(e.scale(grad.1));
-                c.t = t;
-                c.v = v.plus(e.scale(qd));
-                c.jt = jt;
-                c.bt = bt.plus(perp(e).scale(2.0 * p.w * qd)).plus(e.scale(qb));
-            }
+                let bt = bt.plus(perp(e).scale(2.0 * p.w * qd)).plus(e.scale(qb));
+                Kin { t, cs: p.cs, v: v.plus(e.scale(qd)), w: p.w, jt, ja: p.ja, bt, ba: p.ba }
+            };
             // cos and sin of the child's angle by angle addition: the parent's, the origin's
             // pitch, and the hinge's turn.
             let (c2, s2) = if j.sign != 0.0 {
@@ -439,6 +455,23 @@ impl WalkerModel {
     /// velocity-product forces from it. Every link's Jacobian has the unit pelvis columns
     /// (`J_c[x_p] = (1, 0)`, `J_c[z_p] = (0, 1)`, no rotation), so those rows are sums of the
     /// links' masses and first moments.
+    #[allow(clippy::needless_range_loop)] // matrix indices read as the formulas
+    fn bias_forces(&self, kin: &[Kin], q: &mut [f64; NG]) {
+        // The same terms in the same order as `mass_matrix` subtracts them (the same bits).
+        q[PZ] -= self.total_mass_kg * GRAVITY_M_S2;
+        for (l, &(mass, com, iyy)) in self.links.iter().enumerate() {
+            let k = &kin[l];
+            let (_, _, jc, bc) = k.point(k.rot(com));
+            q[PX] -= mass * bc.x;
+            q[PZ] -= mass * bc.z;
+            for r in 0..NJ {
+                q[HIP + r] -= mass * (jc[r].dot(bc) + GRAVITY_M_S2 * jc[r].z) + iyy * k.ja[r] * k.ba;
+            }
+        }
+    }
+
+    /// The mass matrix at the link kinematics `kin`; with `q`, subtracts the gravity and
+    /// velocity-product forces from it ([`Self::bias_forces`]).
     #[allow(clippy::needless_range_loop)] // matrix indices read as the formulas
     fn mass_matrix(&self, kin: &[Kin], mut q: Option<&mut [f64; NG]>) -> [[f64; NG]; NG] {
         let mut m = [[0.0; NG]; NG];
@@ -505,13 +538,53 @@ impl WalkerModel {
 
     /// Evaluate the dynamics at state `x` with `applied` forces and the friction `anchors`.
     pub fn evaluate(&self, x: &[f64; NX], applied: &Applied, anchors: &Anchors) -> Evaluation {
-        let mut stack = [Kin::default(); STACK_LINKS];
-        let mut heap = Vec::new();
-        let kin = self.kin_buffer(&mut stack, &mut heap);
-        self.kinematics(x, kin);
+        self.evaluate_from(x, applied, anchors, None)
+    }
+
+    /// [`Self::evaluate`], taking from `start` what its step's start computed when `x` is that
+    /// state (the same bits, faster).
+    pub fn evaluate_from(
+        &self,
+        x: &[f64; NX],
+        applied: &Applied,
+        anchors: &Anchors,
+        start: Option<&StartCache>,
+    ) -> Evaluation {
+        let start = start.filter(|c| c.x.is_some_and(|cx| cx.iter().zip(x).all(|(a, b)| a.to_bits() == b.to_bits())));
+        match start {
+            Some(c) => self.evaluate_kin(&c.kin, x, applied, anchors, Some(c)),
+            None => self.with_kin(|kin| {
+                self.kinematics(x, kin);
+                self.evaluate_kin(kin, x, applied, anchors, None)
+            }),
+        }
+    }
+
+    /// [`Self::evaluate_from`] at the link kinematics `kin` of state `x`.
+    fn evaluate_kin(
+        &self,
+        kin: &[Kin],
+        x: &[f64; NX],
+        applied: &Applied,
+        anchors: &Anchors,
+        start: Option<&StartCache>,
+    ) -> Evaluation {
         let mut q = applied.q;
-        let mut m = self.mass_matrix(kin, Some(&mut q));
-        let contact = self.contact(kin, anchors, &mut q);
+        let mut m = match start {
+            Some(c) => {
+                self.bias_forces(kin, &mut q);
+                c.m
+            }
+            None => self.mass_matrix(kin, Some(&mut q)),
+        };
+        // The start's contact had its anchors where they are now only at the step's start.
+        let contact = match start.filter(|_| anchors.since_s == 0.0) {
+            Some(c) => {
+                c.contact_q.iter().for_each(|g| add(&mut q, *g));
+                c.contact
+            }
+            None => self.contact(kin, anchors, &mut q, None),
+        };
         if let Some((link, p, f)) = applied.point {
             let k = &kin[link];
             let (_, _, jp, _) = k.point(k.rot(p));
@@ -524,7 +597,13 @@ impl WalkerModel {
         let mut prescribed = [0.0; NG];
         prescribed[HIP] = applied.hip_accel_rad_s2;
         self.lock(&mut m, &mut q, &prescribed);
-        Evaluation { accel: solve(&cholesky(&m), q), contact }
+        // Locking changes the matrix the same way whatever the prescribed accelerations: the
+        // start's factor is this one's.
+        let l = match start {
+            Some(c) => c.l,
+            None => cholesky(&m),
+        };
+        Evaluation { accel: solve(&l, q), contact }
     }
 
     /// Sphere `s` at `kin` if it touches: its depth (m), ground point (m) and the point's
@@ -541,8 +620,15 @@ impl WalkerModel {
         Some((depth, point, v, jp))
     }
 
-    /// The contact forces at the link kinematics `kin`, added to `q`; what they add up to.
-    fn contact(&self, kin: &[Kin], anchors: &Anchors, q: &mut [f64; NG]) -> ContactReading {
+    /// The contact forces at the link kinematics `kin`, added to `q` (and, with `record`, each
+    /// touching sphere's generalized force pushed there); what they add up to.
+    fn contact(
+        &self,
+        kin: &[Kin],
+        anchors: &Anchors,
+        q: &mut [f64; NG],
+        mut record: Option<&mut Vec<[f64; NG]>>,
+    ) -> ContactReading {
         let mut r = ContactReading::default();
         let mut sum = ReadingSum::default();
         let belt = self.belt_speed_m_s;
@@ -552,7 +638,11 @@ impl WalkerModel {
             let mut anchor = anchors.x_m.get(i).copied().flatten().map(|a| a - belt * anchors.since_s);
             let (fx, fz) =
                 sphere_force(&self.law, self.friction, radius, depth, point.x, [v.x, v.z], belt, &mut anchor);
-            add(q, generalized(&jp, P2::new(fx, fz)));
+            let g = generalized(&jp, P2::new(fx, fz));
+            add(q, g);
+            if let Some(rec) = record.as_deref_mut() {
+                rec.push(g);
+            }
             sum.add(&mut r, [point.x, point.z], [fx, fz], depth);
         }
         sum.finish(&mut r);
@@ -565,10 +655,25 @@ impl WalkerModel {
     /// spring carries `mu F_n`), what the ground does then, the knee's compliance, and the gait
     /// lab's shank and foot segments.
     pub fn step_start(&self, x: &[f64; NX], anchors: &mut [Option<f64>]) -> StepStart {
-        let mut stack = [Kin::default(); STACK_LINKS];
-        let mut heap = Vec::new();
-        let kin = self.kin_buffer(&mut stack, &mut heap);
-        self.kinematics(x, kin);
+        self.step_start_into(x, anchors, &mut StartCache::default())
+    }
+
+    /// [`Self::step_start`], keeping in `cache` what the step's first evaluation needs again.
+    pub fn step_start_into(&self, x: &[f64; NX], anchors: &mut [Option<f64>], cache: &mut StartCache) -> StepStart {
+        self.with_kin(|kin| {
+            self.kinematics(x, kin);
+            self.step_start_kin(kin, x, anchors, cache)
+        })
+    }
+
+    /// [`Self::step_start_into`] at the link kinematics `kin` of state `x`.
+    fn step_start_kin(
+        &self,
+        kin: &[Kin],
+        x: &[f64; NX],
+        anchors: &mut [Option<f64>],
+        cache: &mut StartCache,
+    ) -> StepStart {
         for (sphere, anchor) in self.spheres.iter().zip(anchors.iter_mut()) {
             match self.sphere_at(kin, sphere) {
                 None => *anchor = None,
@@ -578,11 +683,17 @@ impl WalkerModel {
                 }
             }
         }
-        let contact = self.contact(kin, &Anchors { x_m: anchors, since_s: 0.0 }, &mut [0.0; NG]);
+        cache.contact_q.clear();
+        let anchored = Anchors { x_m: anchors, since_s: 0.0 };
+        let contact = self.contact(kin, &anchored, &mut [0.0; NG], Some(&mut cache.contact_q));
         let m = self.mass_matrix(kin, None);
         let mut locked = m;
         self.lock(&mut locked, &mut [0.0; NG], &[0.0; NG]);
         let l = cholesky(&locked);
+        cache.x = Some(*x);
+        cache.kin.clear();
+        cache.kin.extend_from_slice(kin);
+        (cache.m, cache.l, cache.contact) = (m, l, contact);
         let (mut p, mut h, mut weight_moment, mut mass) = (P2::default(), 0.0, 0.0, 0.0);
         for &li in &self.segments {
             let (m, com, iyy) = self.links[li];
@@ -645,10 +756,14 @@ impl WalkerModel {
     /// Total energy (J): kinetic of every link and the pelvis, potential in gravity (from
     /// z = 0), at state `x`.
     pub fn energy_j(&self, x: &[f64; NX]) -> f64 {
-        let mut stack = [Kin::default(); STACK_LINKS];
-        let mut heap = Vec::new();
-        let kin = self.kin_buffer(&mut stack, &mut heap);
-        self.kinematics(x, kin);
+        self.with_kin(|kin| {
+            self.kinematics(x, kin);
+            self.energy_kin(kin, x)
+        })
+    }
+
+    /// [`Self::energy_j`] at the link kinematics `kin` of state `x`.
+    fn energy_kin(&self, kin: &[Kin], x: &[f64; NX]) -> f64 {
         let vp = (x[NG + PX], x[NG + PZ]);
         let mut e =
             0.5 * self.pelvis_mass_kg * (vp.0 * vp.0 + vp.1 * vp.1) + self.pelvis_mass_kg * GRAVITY_M_S2 * x[PZ];

@@ -18,7 +18,7 @@ use crate::integrator::Integrator;
 use crate::leg::geometry::cylinder_kinematics_at;
 use crate::leg::planar::P2;
 use crate::leg::reduced_walking_model::{
-    Anchors, Applied, StepStart, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES,
+    Anchors, Applied, StartCache, StepStart, WalkerModel, ANKLE, HIP, KNEE, NG, NX, PX, PZ, STATE_NAMES,
 };
 use crate::record::{ContactRow, LegRow};
 use crate::sensors::{FootLoad, LegKinematics};
@@ -35,6 +35,8 @@ pub struct WalkerPlant {
     anchors: Vec<Option<f64>>,
     piston: PistonTrack,
     now: StepStart,
+    /// What the step's start computed that its first evaluation needs again.
+    start_cache: StartCache,
     /// Start of the coming step (s) and its length (s).
     t_step_s: f64,
     dt_s: f64,
@@ -91,6 +93,7 @@ impl WalkerPlant {
             x,
             piston: PistonTrack::new(l, arm * x[NG + KNEE], 0.0),
             now: StepStart::default(),
+            start_cache: StartCache::default(),
             t_step_s: 0.0,
             dt_s,
             cuff,
@@ -125,7 +128,7 @@ impl WalkerPlant {
     /// lower stop under a 650 kg subject at 1 ms.
     fn start_step(&mut self) {
         let m = &self.model;
-        self.now = m.step_start(&self.x, &mut self.anchors);
+        self.now = m.step_start_into(&self.x, &mut self.anchors, &mut self.start_cache);
         let (q, qd) = (self.x[KNEE], self.x[NG + KNEE]);
         let k = crate::leg::stops::STOP_STIFFNESS_NM_PER_RAD;
         let zeta = crate::leg::stops::STOP_DAMPING_RATIO;
@@ -185,7 +188,8 @@ impl WalkerPlant {
 
     /// The state's derivative at `t_s` with `applied` into `dx`; returns the knee acceleration.
     fn rates(&self, t_s: f64, x: &[f64; NX], applied: &Applied, dx: &mut [f64]) -> f64 {
-        let e = self.model.evaluate(x, applied, &Anchors { x_m: &self.anchors, since_s: t_s - self.t_step_s });
+        let anchors = Anchors { x_m: &self.anchors, since_s: t_s - self.t_step_s };
+        let e = self.model.evaluate_from(x, applied, &anchors, Some(&self.start_cache));
         dx[..NG].copy_from_slice(&x[NG..]);
         dx[NG..NX].copy_from_slice(&e.accel);
         e.accel[KNEE]

@@ -72,16 +72,14 @@ impl FourierSeries {
     /// Value and first and second derivatives at `x`.
     pub fn eval(&self, x: f64) -> (f64, f64, f64) {
         let (mut v, mut d1, mut d2) = (self.c0, 0.0, 0.0);
-        // sin/cos of k*w*x by the angle-addition recurrence: one sin_cos per evaluation.
-        let (s1, c1) = (self.w * x).sin_cos();
-        let (mut s, mut c) = (s1, c1);
-        for (k, (a, b)) in self.a.iter().zip(&self.b).enumerate() {
-            let kw = (k + 1) as f64 * self.w;
-            v += a * c + b * s;
-            d1 += kw * (b * c - a * s);
-            d2 -= kw * kw * (a * c + b * s);
-            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
-        }
+        with_harmonics(self.w * x, self.a.len(), |s, c| {
+            for (k, ((a, b), (s, c))) in self.a.iter().zip(&self.b).zip(s.iter().zip(c)).enumerate() {
+                let kw = (k + 1) as f64 * self.w;
+                v += a * c + b * s;
+                d1 += kw * (b * c - a * s);
+                d2 -= kw * kw * (a * c + b * s);
+            }
+        });
         (v, d1, d2)
     }
 
@@ -94,35 +92,114 @@ impl FourierSeries {
         }
         let (mut v, mut d1, mut d2) = (self.c0, 0.0, 0.0);
         let (mut u, mut e1, mut e2) = (other.c0, 0.0, 0.0);
-        let (s1, c1) = (self.w * x).sin_cos();
-        let (mut s, mut c) = (s1, c1);
-        for (k, ((a, b), (oa, ob))) in self.a.iter().zip(&self.b).zip(other.a.iter().zip(&other.b)).enumerate() {
-            let kw = (k + 1) as f64 * self.w;
-            v += a * c + b * s;
-            d1 += kw * (b * c - a * s);
-            d2 -= kw * kw * (a * c + b * s);
-            u += oa * c + ob * s;
-            e1 += kw * (ob * c - oa * s);
-            e2 -= kw * kw * (oa * c + ob * s);
-            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
-        }
+        with_harmonics(self.w * x, self.a.len(), |s, c| {
+            let mine = self.a.iter().zip(&self.b);
+            let theirs = other.a.iter().zip(&other.b);
+            for (k, (((a, b), (oa, ob)), (s, c))) in mine.zip(theirs).zip(s.iter().zip(c)).enumerate() {
+                let kw = (k + 1) as f64 * self.w;
+                v += a * c + b * s;
+                d1 += kw * (b * c - a * s);
+                d2 -= kw * kw * (a * c + b * s);
+                u += oa * c + ob * s;
+                e1 += kw * (ob * c - oa * s);
+                e2 -= kw * kw * (oa * c + ob * s);
+            }
+        });
         ((v, d1, d2), (u, e1, e2))
     }
 
     /// Value and first, second and third derivatives at `x`.
     pub fn eval3(&self, x: f64) -> (f64, f64, f64, f64) {
         let (mut v, mut d1, mut d2, mut d3) = (self.c0, 0.0, 0.0, 0.0);
-        let (s1, c1) = (self.w * x).sin_cos();
-        let (mut s, mut c) = (s1, c1);
-        for (k, (a, b)) in self.a.iter().zip(&self.b).enumerate() {
-            let kw = (k + 1) as f64 * self.w;
-            v += a * c + b * s;
-            d1 += kw * (b * c - a * s);
-            d2 -= kw * kw * (a * c + b * s);
-            d3 -= kw * kw * kw * (b * c - a * s);
-            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
-        }
+        with_harmonics(self.w * x, self.a.len(), |s, c| {
+            for (k, ((a, b), (s, c))) in self.a.iter().zip(&self.b).zip(s.iter().zip(c)).enumerate() {
+                let kw = (k + 1) as f64 * self.w;
+                v += a * c + b * s;
+                d1 += kw * (b * c - a * s);
+                d2 -= kw * kw * (a * c + b * s);
+                d3 -= kw * kw * kw * (b * c - a * s);
+            }
+        });
         (v, d1, d2, d3)
+    }
+}
+
+/// Harmonics a thread's basis keeps (the longest shipped series has 48).
+const BASIS_HARMONICS: usize = 64;
+/// Angles whose bases a thread keeps.
+const BASIS_ENTRIES: usize = 4;
+
+/// The sines and cosines of `k theta` for k = 1.. of a few angles `theta` (this thread's).
+struct Basis {
+    /// Per entry: the angle's bits, how many harmonics are filled, sines, cosines.
+    entries: [(u64, usize, [f64; BASIS_HARMONICS], [f64; BASIS_HARMONICS]); BASIS_ENTRIES],
+    next: usize,
+}
+
+thread_local! {
+    static BASIS: std::cell::RefCell<Basis> = const {
+        std::cell::RefCell::new(Basis {
+            entries: [(0, 0, [0.0; BASIS_HARMONICS], [0.0; BASIS_HARMONICS]); BASIS_ENTRIES],
+            next: 0,
+        })
+    };
+}
+
+/// `f(sin k theta, cos k theta)` for k = 1..=n, by the angle-addition recurrence from one
+/// `sin_cos(theta)`. The series of a gait cycle share their angle at an instant (the hip, the
+/// pelvis, the knee and the ankle at the loop's time; the knee again for the friction's
+/// feedforward one step before): the sines and cosines of the last few angles are kept per
+/// thread, and every series gets the same bits as from its own recurrence.
+fn with_harmonics<R>(theta: f64, n: usize, f: impl FnOnce(&[f64], &[f64]) -> R) -> R {
+    let fill = |s: &mut [f64], c: &mut [f64]| {
+        let (s1, c1) = theta.sin_cos();
+        let (mut sk, mut ck) = (s1, c1);
+        for (s, c) in s.iter_mut().zip(c.iter_mut()) {
+            (*s, *c) = (sk, ck);
+            (sk, ck) = (sk * c1 + ck * s1, ck * c1 - sk * s1);
+        }
+    };
+    if n > BASIS_HARMONICS {
+        let (mut s, mut c) = (vec![0.0; n], vec![0.0; n]);
+        fill(&mut s, &mut c);
+        return f(&s, &c);
+    }
+    BASIS.with_borrow_mut(|b| {
+        let key = theta.to_bits();
+        let i = match b.entries.iter().position(|e| e.0 == key && e.1 >= n) {
+            Some(i) => i,
+            None => {
+                let i = b.next;
+                b.next = (i + 1) % BASIS_ENTRIES;
+                let e = &mut b.entries[i];
+                fill(&mut e.2[..n], &mut e.3[..n]);
+                (e.0, e.1) = (key, n);
+                i
+            }
+        };
+        let e = &b.entries[i];
+        f(&e.2[..n], &e.3[..n])
+    })
+}
+
+/// `x.rem_euclid(100.0)`, the same bits, without the library's `fmod` (a hundred-odd
+/// instructions, several times per step on the gait path): `x - 100 trunc(x / 100)` is exact
+/// when the quotient is right, and the remainder's sign and size say when it is not.
+pub fn rem_euclid_100(x: f64) -> f64 {
+    if !(x.abs() < 1e15) {
+        return x.rem_euclid(100.0);
+    }
+    let q = (x / 100.0).trunc();
+    let r = x - 100.0 * q;
+    if r.abs() >= 100.0 || (r != 0.0 && (r < 0.0) != (x < 0.0)) {
+        return x.rem_euclid(100.0);
+    }
+    // fmod's zero carries the dividend's sign; rem_euclid adds the divisor to a negative one.
+    let r = if r == 0.0 { 0.0f64.copysign(x) } else { r };
+    if r < 0.0 {
+        r + 100.0
+    } else {
+        r
     }
 }
 
@@ -172,7 +249,7 @@ impl CycleTable {
     /// Value at `pct` (% of the cycle, any real: wrapped into the cycle).
     pub fn at(&self, pct: f64) -> f64 {
         let (first, n) = (self.pct[0], self.pct.len());
-        let p = first + (pct - first).rem_euclid(100.0);
+        let p = first + rem_euclid_100(pct - first);
         let i = self.pct.partition_point(|&x| x <= p);
         let (lo, hi) = if i == 0 || i == n {
             // Between the last row and the first row of the next cycle.
@@ -387,6 +464,57 @@ mod tests {
             assert_eq!(a.eval_pair(&b, t), (a.eval(t), b.eval(t)));
             assert_eq!(a.eval_pair(&other, t), (a.eval(t), other.eval(t)));
         }
+    }
+
+    /// The fast remainder gives `rem_euclid`'s bits, at the edges and on a million values.
+    #[test]
+    fn rem_euclid_100_is_rem_euclid() {
+        let mut x = 0x853c_49e6_748f_ea9bu64;
+        let edges = [0.0, -0.0, 100.0, -100.0, 99.99999999999999, -1e-300, 299.99999999999994, 1e15, -1e15, 5e16];
+        let randoms = (0..1_000_000).map(|i| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let u = x as f64 / u64::MAX as f64;
+            match i % 3 {
+                0 => (u - 0.5) * 1000.0,
+                1 => (u - 0.3) * 1e7,
+                _ => ((x % 2000) as f64 - 1000.0) * 100.0 * (1.0 + (u - 0.5) * 1e-15),
+            }
+        });
+        for v in edges.into_iter().chain(randoms) {
+            assert_eq!(rem_euclid_100(v).to_bits(), v.rem_euclid(100.0).to_bits(), "{v:e}");
+        }
+        assert!(rem_euclid_100(f64::NAN).is_nan());
+    }
+
+    /// A series evaluated after another of the same angle (the kept basis) gives the bits of
+    /// its own recurrence: interleaved angles and lengths, against a fresh thread.
+    #[test]
+    fn kept_harmonics_give_the_same_bits() {
+        let x: Vec<f64> = (0..300).map(|i| i as f64 * 0.0037).collect();
+        let y: Vec<f64> = x.iter().map(|t| (5.0 * t).sin() + (t * 2.0).cos() * t).collect();
+        let series: Vec<FourierSeries> = [3, 12, 48, 70].iter().map(|&h| FourierSeries::fit(&x, &y, 1.1, h)).collect();
+        let ts = [0.0, 0.3, 0.3, 1.7, 0.3, 2.2, 1.7];
+        let here: Vec<_> =
+            ts.iter().flat_map(|&t| series.iter().map(move |s| (s.eval(t), s.eval3(t), s.eval_pair(s, t)))).collect();
+        let fresh = std::thread::scope(|sc| {
+            sc.spawn(|| {
+                ts.iter()
+                    .flat_map(|&t| {
+                        series.iter().map(move |s| {
+                            // A new thread per evaluation: nothing kept.
+                            std::thread::scope(|s2| {
+                                s2.spawn(|| (s.eval(t), s.eval3(t), s.eval_pair(s, t))).join().unwrap()
+                            })
+                        })
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .join()
+            .unwrap()
+        });
+        assert_eq!(here, fresh);
     }
 
     #[test]

@@ -132,10 +132,27 @@ impl KneeForceReference {
     /// on the carriage with the stance weight `w` (and its rates):
     /// `F_ff = (1 - w) F_id + w F_assist + F_f`.
     pub fn feedforward_at(&self, t_s: f64, stance_weight: Option<RefSample>) -> RefSample {
+        self.feedforward_from(&self.feedforward_parts(t_s), stance_weight)
+    }
+
+    /// The parts of [`Self::feedforward_at`] that depend on the time alone (the Fourier series
+    /// and the friction): what a loop may keep for an instant it asks about again.
+    pub fn feedforward_parts(&self, t_s: f64) -> FeedforwardParts {
+        // The pair gives the same bits as the single evaluation (tested in `gait`).
+        let (id, assist) = match &self.assist_fit {
+            Some(f) => self.id_fit.eval_pair(f, t_s),
+            None => (self.id_fit.eval(t_s), (0.0, 0.0, 0.0)),
+        };
+        FeedforwardParts { id, assist, friction: self.friction_at(t_s) }
+    }
+
+    /// [`Self::feedforward_at`] from its time's `parts`.
+    pub fn feedforward_from(&self, parts: &FeedforwardParts, stance_weight: Option<RefSample>) -> RefSample {
         let weighted = stance_weight.filter(|_| self.stance.is_some());
-        let ((mut value, mut rate, mut accel), b) = match (weighted, &self.assist_fit) {
-            (Some(_), Some(f)) => self.id_fit.eval_pair(f, t_s),
-            _ => (self.id_fit.eval(t_s), (0.0, 0.0, 0.0)),
+        let (mut value, mut rate, mut accel) = parts.id;
+        let b = match (weighted, &self.assist_fit) {
+            (Some(_), Some(_)) => parts.assist,
+            _ => (0.0, 0.0, 0.0),
         };
         if let Some(w) = weighted {
             let (d0, d1, d2) = (b.0 - value, b.1 - rate, b.2 - accel);
@@ -143,7 +160,17 @@ impl KneeForceReference {
             rate += w.value * d1 + w.rate * d0;
             value += w.value * d0;
         }
-        let f = self.friction_at(t_s);
+        let f = parts.friction;
         RefSample { value: value + f.value, rate: rate + f.rate, accel: accel + f.accel }
     }
+}
+
+/// The time-only parts of the feedforward at one instant (see
+/// [`KneeForceReference::feedforward_parts`]): the inverse-dynamics and assistance series'
+/// values with two time derivatives (N, N/s, N/s^2) and the seal friction's.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FeedforwardParts {
+    id: (f64, f64, f64),
+    assist: (f64, f64, f64),
+    friction: RefSample,
 }

@@ -98,22 +98,58 @@ impl ForceReference {
     /// detected contact, `human::GaitEvents`; without a detector the data's phase) blends the
     /// feedforward and gates the outer loop by `1 - w`.
     pub fn force_at(&self, t_s: f64, pd_force_n: f64, stance_weight: Option<RefSample>) -> RefSample {
+        self.force_from(&self.force_parts(t_s), t_s, pd_force_n, stance_weight)
+    }
+
+    /// The parts of [`Self::force_at`] that depend on `t_s` alone (a loop keeps them for an
+    /// instant it asks about again: the next sample's preview is the next step's present).
+    pub fn force_parts(&self, t_s: f64) -> ForceParts {
         match self {
-            ForceReference::Sine(s) => s.at(t_s),
-            ForceReference::Gait(k) => {
+            ForceReference::Sine(s) => ForceParts::Sine(s.at(t_s)),
+            ForceReference::Gait(k) => ForceParts::Gait(k.feedforward_parts(t_s)),
+            ForceReference::Pose { .. } => ForceParts::Pose,
+        }
+    }
+
+    /// [`Self::force_at`] from the `parts` of the same `t_s`.
+    pub fn force_from(
+        &self,
+        parts: &ForceParts,
+        t_s: f64,
+        pd_force_n: f64,
+        stance_weight: Option<RefSample>,
+    ) -> RefSample {
+        match (self, parts) {
+            (ForceReference::Gait(k), ForceParts::Gait(p)) => {
                 let w = k.stance_gate().map(|data| {
                     stance_weight.unwrap_or_else(|| RefSample {
                         value: data.stance_weight_at_pct(data.pct_at(t_s)),
                         ..Default::default()
                     })
                 });
-                let mut r = k.feedforward_at(t_s, w);
+                let mut r = k.feedforward_from(p, w);
                 r.value += pd_force_n * (1.0 - w.map_or(0.0, |w| w.value));
                 r
             }
-            ForceReference::Pose { .. } => RefSample { value: pd_force_n, ..Default::default() },
+            (ForceReference::Sine(_), ForceParts::Sine(r)) => *r,
+            (ForceReference::Pose { .. }, _) => RefSample { value: pd_force_n, ..Default::default() },
+            // Parts of another reference: computed afresh.
+            (ForceReference::Gait(_) | ForceReference::Sine(_), _) => {
+                self.force_from(&self.force_parts(t_s), t_s, pd_force_n, stance_weight)
+            }
         }
     }
+}
+
+/// What [`ForceReference::force_parts`] keeps of one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ForceParts {
+    /// A sine's sample.
+    Sine(RefSample),
+    /// A gait reference's feedforward parts.
+    Gait(FeedforwardParts),
+    /// A pose (nothing depends on the time).
+    Pose,
 }
 
 #[cfg(test)]

@@ -348,15 +348,15 @@ impl WalkingData {
 
     /// Cycle percentage at `t_s` (0..100).
     pub fn pct_at(&self, t_s: f64) -> f64 {
-        (t_s / self.gait.stride_s * 100.0).rem_euclid(100.0)
+        super::rem_euclid_100(t_s / self.gait.stride_s * 100.0)
     }
 
     /// Stance weight of this leg at cycle percentage `pct` (0 swing .. 1 stance): raised-cosine
     /// edges [`STANCE_BLEND_PCT`] wide, 0.5 at heel strike and at toe-off.
     pub fn stance_weight_at_pct(&self, pct: f64) -> f64 {
         let (hs, to) = self.stance_pct;
-        let len = (to - hs).rem_euclid(100.0);
-        let x = (pct - hs).rem_euclid(100.0);
+        let len = super::rem_euclid_100(to - hs);
+        let x = super::rem_euclid_100(pct - hs);
         let half = STANCE_BLEND_PCT / 2.0;
         let edge = |d: f64| 0.5 * (std::f64::consts::PI * d.min(half) / STANCE_BLEND_PCT).sin();
         if x <= len {

@@ -475,7 +475,10 @@ impl Simulation {
         }
         let d = Dynamics { sc: &self.sc, controller: None, memo: &self.ref_memo };
         let r = d.reference_at(t, &self.held);
-        let r_next = d.reference_at(t + period, &self.held);
+        // The next sample instant's time as that step will compute it (so its reference is
+        // the one kept now).
+        let every = self.sc.sample_every.unwrap_or(1);
+        let r_next = d.reference_at((self.k + every) as f64 * self.sc.dt_s, &self.held);
         Ok(SampleInput {
             t_s: t,
             period_s: period,
@@ -508,12 +511,13 @@ impl Simulation {
     /// (under `controller.on_stop = "failsafe"`: the device goes to its fail-safe state).
     pub fn hold(&mut self, out: ControlOutput) -> Result<()> {
         let t = self.t_s();
-        let kind = match &self.control {
+        let kind = || match &self.control {
             ControlBlock::Sampled(l) => l.ctrl.as_ref().map_or("external".to_string(), |c| c.kind().to_string()),
-            ControlBlock::Continuous(_) => {
-                return Err(Error::Usage("hold(): the run's controller is continuous".into()))
-            }
+            ControlBlock::Continuous(_) => String::new(),
         };
+        if let ControlBlock::Continuous(_) = &self.control {
+            return Err(Error::Usage("hold(): the run's controller is continuous".into()));
+        }
         let out = if out.valve_command.is_finite() {
             out
         } else if self.sc.on_stop == crate::control::OnStop::Failsafe {
@@ -523,7 +527,7 @@ impl Simulation {
         } else {
             return Err(Error::ControllerStopped {
                 time_s: t,
-                controller: kind,
+                controller: kind(),
                 message: format!("the valve command is {}", out.valve_command),
             });
         };

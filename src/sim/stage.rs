@@ -64,18 +64,51 @@ pub(super) struct Stage {
 /// Cleared at every step's start (the stance weight may change there).
 /// With coupled mechanics also the last mechanics stage: a sampled step evaluates its start
 /// for the sensors and again for its record, with the same state.
+/// Beside them, what depends on the time alone and is kept across steps (the next sample's
+/// preview is the next step's present): the force reference's parts and the knee trajectory.
 #[derive(Debug, Default)]
 pub(super) struct RefMemo {
     entries: [(u64, u64, RefSample); 8],
     len: usize,
     next: usize,
     stage: Option<MechMemo>,
+    parts: TimeMemo<crate::reference::ForceParts>,
+    knee: TimeMemo<Option<RefSample>>,
+}
+
+/// A few values of a function of time alone, by the time's bits (oldest replaced first).
+#[derive(Debug)]
+struct TimeMemo<T> {
+    entries: [Option<(u64, T)>; 4],
+    next: usize,
+}
+
+impl<T> Default for TimeMemo<T> {
+    fn default() -> Self {
+        Self { entries: [None, None, None, None], next: 0 }
+    }
+}
+
+impl<T: Copy> TimeMemo<T> {
+    /// The value at `t`: kept, or `f(t)` (then kept).
+    fn get(&mut self, t: f64, f: impl FnOnce(f64) -> T) -> T {
+        let key = t.to_bits();
+        if let Some((_, v)) = self.entries.iter().flatten().find(|(k, _)| *k == key) {
+            return *v;
+        }
+        let v = f(t);
+        self.entries[self.next] = Some((key, v));
+        self.next = (self.next + 1) % self.entries.len();
+        v
+    }
 }
 
 /// One coupled-mechanics stage: its time, load force and cuff force (bits), state, derivative
 /// and result.
 #[derive(Debug, Clone, Copy)]
 struct MechMemo {
+    /// Still valid (a step's start forgets it without freeing the slot).
+    live: bool,
     key: (u64, u64, u64),
     x: [f64; MAX_MECH],
     dx: [f64; MAX_MECH],
@@ -90,7 +123,9 @@ impl RefMemo {
     pub fn clear(&mut self) {
         self.len = 0;
         self.next = 0;
-        self.stage = None;
+        if let Some(m) = &mut self.stage {
+            m.live = false;
+        }
     }
 }
 
@@ -112,7 +147,9 @@ impl Dynamics<'_> {
         if let Some(e) = memo.entries[..memo.len].iter().find(|e| (e.0, e.1) == key) {
             return e.2;
         }
-        let r = self.sc.reference.force_at(t, held.pd_force_n, held.events.map(|e| e.stance_weight(t)));
+        let reference = &self.sc.reference;
+        let parts = memo.parts.get(t, |t| reference.force_parts(t));
+        let r = reference.force_from(&parts, t, held.pd_force_n, held.events.map(|e| e.stance_weight(t)));
         let i = memo.next;
         memo.entries[i] = (key.0, key.1, r);
         memo.next = (i + 1) % memo.entries.len();
@@ -120,9 +157,15 @@ impl Dynamics<'_> {
         r
     }
 
+    /// The knee trajectory at `t` (gait and pose references), kept for the instants asked
+    /// again.
+    pub fn knee_at(&self, t: f64) -> Option<RefSample> {
+        self.memo.borrow_mut().knee.get(t, |t| self.sc.reference.knee_at(t))
+    }
+
     /// The gait cascade's outer-loop force for a knee reading at `t` (0 without a cascade).
     pub fn pd_force(&self, t: f64, knee_rad: f64, knee_rate_rad_s: f64, integral_rad_s: f64) -> f64 {
-        match (&self.sc.knee_pd, self.sc.reference.knee_at(t)) {
+        match (&self.sc.knee_pd, self.knee_at(t)) {
             (Some(pd), Some(desired)) => pd.force_n(&desired, knee_rad, knee_rate_rad_s, integral_rad_s),
             _ => 0.0,
         }
@@ -130,7 +173,7 @@ impl Dynamics<'_> {
 
     /// The outer loop's knee-error integral (rad s) after `dt_s` more at reading `knee_rad`.
     pub fn pd_integral(&self, t: f64, integral_rad_s: f64, knee_rad: f64, dt_s: f64) -> f64 {
-        match (&self.sc.knee_pd, self.sc.reference.knee_at(t)) {
+        match (&self.sc.knee_pd, self.knee_at(t)) {
             (Some(pd), Some(desired)) => pd.integrate(integral_rad_s, desired.value - knee_rad, dt_s),
             _ => 0.0,
         }
@@ -162,7 +205,7 @@ impl Dynamics<'_> {
     ) -> CoupledStage {
         let key = (t.to_bits(), s.hyd.force_n.to_bits(), held.cuff_force_n.to_bits());
         let n = mech.len();
-        if let Some(m) = self.memo.borrow().stage.filter(|m| m.key == key && m.x[..n] == *mech) {
+        if let Some(m) = self.memo.borrow().stage.as_ref().filter(|m| m.live && m.key == key && m.x[..n] == *mech) {
             dmech.copy_from_slice(&m.dx[..n]);
             return m.out;
         }
@@ -170,10 +213,12 @@ impl Dynamics<'_> {
         let inputs = StageInputs { net_force_n: &net_force, cuff_force_n: held.cuff_force_n, body: held.body };
         let out = c.stage(t, mech, &inputs, dmech);
         if n <= MAX_MECH {
-            let mut m = MechMemo { key, x: [0.0; MAX_MECH], dx: [0.0; MAX_MECH], out };
+            let mut memo = self.memo.borrow_mut();
+            let m =
+                memo.stage.get_or_insert(MechMemo { live: true, key, x: [0.0; MAX_MECH], dx: [0.0; MAX_MECH], out });
+            (m.live, m.key, m.out) = (true, key, out);
             m.x[..n].copy_from_slice(mech);
             m.dx[..n].copy_from_slice(dmech);
-            self.memo.borrow_mut().stage = Some(m);
         }
         out
     }
@@ -443,7 +488,7 @@ impl Dynamics<'_> {
             disturbance_estimate_n_per_s2: st.out.disturbance_estimate_n_per_s2,
             rbf_output_n_per_s2: st.out.rbf_output_n_per_s2,
             lumped_disturbance_n_per_s2: st.lumped_n_per_s2,
-            ref_knee_deg: self.sc.reference.knee_at(t).map(|k| k.value.to_degrees()),
+            ref_knee_deg: self.knee_at(t).map(|k| k.value.to_degrees()),
             leg,
             contact: plant.contact_row(),
             device,

@@ -86,6 +86,17 @@
 //!   and forefoot forces, cuff forces, pressures, hydraulic power, the device's knee moment)
 //!   after the contact columns. Nothing else changed: the files without those columns hash
 //!   to issue 33's records (checked below, `WITHOUT_DEVICE_COLUMNS`).
+//! - gait_treadmill, treadmill_subject, and the reduced-engine records added before it (issue
+//!   41, speed): a sampled controller's reference preview `r_next` is taken at the next sample
+//!   instant's time as that step computes it, `(k + every) dt`, instead of `k dt + period`
+//!   (which differ in the last bit of the time), so the preview is the next step's present and
+//!   is computed once. Rounding only: every column moves by at most 2.7e-11 of its peak (the
+//!   lumped-disturbance column, numerically zero, by 3e-8 N/s^2), every number in
+//!   `summary.json` by at most 9e-10 relative (the loop gap of 1.5e-7 m; the others 2e-11),
+//!   and every figure `exoleg run` prints for the ten scenarios on both engines, the
+//!   `compare --plant bench|leg` tables and the 27-trial `gait-check` table is unchanged at its
+//!   printed precision. The other optimisations of that issue change no bit (the records of
+//!   `stand` and the non-walking scenarios are unchanged).
 
 use sha2::{Digest, Sha256};
 use std::path::Path;
@@ -101,16 +112,16 @@ const EXPECTED: [(&str, &str); 10] = [
     ("paper_2hz_gamma200", "8bfafba8298a3886711e89216a95b04f8e046d5d8290bc4959a31cad5ff6172e"),
     // Added with issue 12 (loaded walking).
     ("stand", "1db9d3ff5af0e9a9cd5ca7655aa63166708ad14ecf1fcbb01ead55ca02b9e79b"),
-    ("gait_treadmill", "5584d4662ae9cbc791c3d3caddf064eb54661f2afd30fa745bcca188700a9ff1"),
+    ("gait_treadmill", "3429044405382fde7aa6ba10c14fc6c74f98d00c6a823f977f66e389134e9e8c"),
     // Added with issue 23 (any subject).
-    ("treadmill_subject", "7b18541b87743f77756ceca882e023e48bebd3585afc29f7eab081241ecdfc19"),
+    ("treadmill_subject", "b13182f58e50b26e263cafcfc315a03e38eccdc7dfce333562eb27281429f7fe"),
 ];
 
 /// The records (issue 33's) of the runs that now carry the device's columns (issue 32): the
 /// files without those columns.
 const WITHOUT_DEVICE_COLUMNS: [(&str, &str); 2] = [
-    ("gait_treadmill", "1945a81249a14d05a53037c448fef84d720f12d6f77f7b98eeeb4db9cbce750d"),
-    ("treadmill_subject", "f5876941b8ee61c72dccfd9eac926dd7490fe51e7f820637a812423a2e2fe834"),
+    ("gait_treadmill", "95a5ad6e8b06c7ca90d7c69fb31cc2c005e3cf2f2780d43821e602f9e1d3defc"),
+    ("treadmill_subject", "6dbca6c04e9ddae99b57b0385a97b3effc3bc04fd0832f6bb06e5d96a4f36d8a"),
 ];
 
 /// A CSV without the device's columns (`exoleg::record::DEVICE_COLUMNS`).
@@ -124,6 +135,37 @@ pub(crate) fn without_device_columns(csv: &str) -> String {
         keep.iter().map(|i| v[*i]).collect::<Vec<_>>().join(",") + "\n"
     };
     std::iter::once(header.join(",")).map(|h| pick(&h)).chain(lines.map(pick)).collect()
+}
+
+/// The walking scenarios on the reduced engine at 1 ms (`--set 'leg.engine="reduced"' --set
+/// sim.dt_s=0.001`), the speed issue's (41) case: recorded before its optimisations of the
+/// step (the preview's time since: see the module's list).
+const REDUCED_1MS: [(&str, &str); 3] = [
+    ("gait_treadmill", "c092c69ed7503f91d433496be788101879234867f9cb973df20d3c4d1b9b8137"),
+    ("treadmill_subject", "40209cced71986e9d27b3e6acbe0105316d9a6aa2cee2d59cb7afc27d409b017"),
+    ("stand", "fc438d0be671f3164128a742875d9e52707ecf9f8a63cb0957f3630d40ce0f73"),
+];
+
+#[test]
+fn shipped_walking_scenarios_on_the_reduced_engine_give_the_recorded_timeseries() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios");
+    let tmp = tempfile::tempdir().unwrap();
+    let mut wrong = Vec::new();
+    for (name, hash) in REDUCED_1MS {
+        let out = tmp.path().join(name);
+        let o = Command::new(env!("CARGO_BIN_EXE_exoleg"))
+            .args(["run", "--quiet", "--set", "leg.engine=\"reduced\"", "--set", "sim.dt_s=0.001", "--out"])
+            .arg(&out)
+            .arg(dir.join(format!("{name}.toml")))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        let got = format!("{:x}", Sha256::digest(std::fs::read(out.join("timeseries.csv")).unwrap()));
+        if got != hash {
+            wrong.push(format!("{name} (reduced, 1 ms): {got}"));
+        }
+    }
+    assert!(wrong.is_empty(), "changed time series:\n{}", wrong.join("\n"));
 }
 
 #[test]
