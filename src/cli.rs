@@ -390,6 +390,9 @@ fn print_wearer(w: &crate::metrics::WearerSummary) {
         "knee range          {:.1}..{:.1} deg (the wearer's data {:.1}..{:.1} deg)",
         w.knee_range_deg[0], w.knee_range_deg[1], w.data_knee_range_deg[0], w.data_knee_range_deg[1]
     );
+    if let Some(m) = &w.metabolics {
+        print_metabolics(m);
+    }
     if let Some(p) = &w.phase_estimate {
         let ms = |x: Option<f64>| x.map_or("-".into(), |x| format!("{:.1} ms", 1e3 * x));
         println!(
@@ -400,6 +403,37 @@ fn print_wearer(w: &crate::metrics::WearerSummary) {
             p.phase_rmse_pct.map_or("-".into(), |e| format!("{e:.2} %"))
         );
     }
+}
+
+/// What the wearer's muscles cost (`wearer.muscles`).
+fn print_metabolics(m: &crate::metrics::muscles::MetabolicsSummary) {
+    let change = match (m.baseline_gross_w_per_kg, m.change_pct) {
+        (Some(b), Some(c)) => format!("; without the device's help {b:.2} W/kg: {c:+.1} %"),
+        _ => String::new(),
+    };
+    println!(
+        "metabolic rate      gross {:.2} W/kg, net {:.2} W/kg ({}, {} muscles, {}){change}",
+        m.gross_w_per_kg, m.net_w_per_kg, m.metabolic_model, m.muscle_model, m.muscle_cost
+    );
+    let mut top: Vec<(&String, &f64)> = m.per_muscle_w.iter().collect();
+    top.sort_by(|a, b| b.1.total_cmp(a.1));
+    let top: Vec<String> = top.iter().take(4).map(|(n, w)| format!("{n} {w:.0} W")).collect();
+    let effort_change = m.effort_change_pct.map_or(String::new(), |c| format!(" ({c:+.1} %)"));
+    println!(
+        "muscles             effort {:.3}{effort_change}; {}; peak reserves hip {:.1} %, knee {:.1} %, ankle {:.1} % of the moments",
+        m.effort,
+        top.join(", "),
+        m.peak_reserve_pct[0],
+        m.peak_reserve_pct[1],
+        m.peak_reserve_pct[2]
+    );
+    let off: Vec<&str> = m.emg.iter().filter(|e| !e.agrees).map(|e| e.muscle.as_str()).collect();
+    println!(
+        "activations vs EMG  {} of {} muscles on in Perry's (1992) phases{}",
+        m.emg.len() - off.len(),
+        m.emg.len(),
+        if off.is_empty() { String::new() } else { format!(" (not: {})", off.join(", ")) }
+    );
 }
 
 /// The warnings of a study's base scenario, once (a file changed since a recorded run, ...);

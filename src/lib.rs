@@ -20,7 +20,7 @@
 //! ```text
 //! error, integrator
 //! record, hydraulics, sensors, fsio
-//! disturbance, leg
+//! disturbance, leg, muscles
 //! reference
 //! human, control, metrics
 //! plant
@@ -44,6 +44,7 @@ pub mod hydraulics;
 pub mod integrator;
 pub mod leg;
 pub mod metrics;
+pub mod muscles;
 pub mod output;
 pub mod plant;
 pub mod record;

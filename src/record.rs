@@ -82,7 +82,7 @@ pub struct DeviceRow {
 }
 
 /// One recorded instant. Units in the field names; see the README's output section.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Row {
     /// Time (s).
     pub t_s: f64,
@@ -134,6 +134,9 @@ pub struct Row {
     pub fault_active: bool,
     /// The controller's logged channels (the first `layout.log.len()` are used).
     pub log: [f64; MAX_LOGGED],
+    /// The wearer's muscle analysis of this instant (`wearer.muscles`; the values of
+    /// `muscles::analysis::Sample`, per muscle then the totals).
+    pub muscles: Option<std::sync::Arc<[f64]>>,
 }
 
 /// Most channels a controller may log ([`Row::log`]).
@@ -182,8 +185,10 @@ pub struct Layout {
     pub device: bool,
     /// The `fault_active` column.
     pub faults: bool,
-    /// The controller's logged channels (columns `log_<name>`, last).
+    /// The controller's logged channels (columns `log_<name>`).
     pub log: Vec<String>,
+    /// The muscle analysis's columns (`output.muscles`), last.
+    pub muscles: Vec<String>,
 }
 
 /// Names of the always-present columns, with units in their suffixes, in output order.
@@ -258,6 +263,7 @@ impl Layout {
             + if self.device { DEVICE_COLUMNS.len() } else { 0 }
             + usize::from(self.faults)
             + self.log.len().min(MAX_LOGGED)
+            + self.muscles.len()
     }
 
     /// Column names in output order.
@@ -279,6 +285,7 @@ impl Layout {
             n.push("fault_active".into());
         }
         n.extend(self.log.iter().map(|l| format!("log_{l}")));
+        n.extend(self.muscles.iter().cloned());
         n
     }
 }
@@ -364,6 +371,12 @@ impl Row {
             out.push(flag(self.fault_active));
         }
         out.extend_from_slice(&self.log[..layout.log.len().min(MAX_LOGGED)]);
+        if !layout.muscles.is_empty() {
+            match &self.muscles {
+                Some(m) if m.len() == layout.muscles.len() => out.extend_from_slice(m),
+                _ => out.extend(std::iter::repeat_n(f64::NAN, layout.muscles.len())),
+            }
+        }
     }
 
     /// Knee error actual - desired (deg), when the row has both.
@@ -483,7 +496,7 @@ impl RecordSink for MemoryRecord {
         Ok(())
     }
     fn row(&mut self, row: &Row) -> Result<()> {
-        self.rows.push(*row);
+        self.rows.push(row.clone());
         Ok(())
     }
 }

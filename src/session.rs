@@ -12,6 +12,20 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+/// A session's sinks as a [`Fan`] (a macro: the fields borrowed apart from the simulation).
+macro_rules! fan {
+    ($s:expr) => {
+        Fan {
+            metrics: &mut $s.metrics,
+            sink: &mut $s.sink,
+            walking: $s.walking.as_mut(),
+            wearer: $s.wearer.as_mut(),
+            safety: $s.safety.as_mut(),
+            muscles: $s.muscles.as_mut(),
+        }
+    };
+}
+
 /// The sinks of a session, fed in order without allocating per row.
 struct Fan<'a, S: RecordSink + ?Sized> {
     metrics: &'a mut SummaryBuilder,
@@ -19,6 +33,7 @@ struct Fan<'a, S: RecordSink + ?Sized> {
     walking: Option<&'a mut WalkingMetrics>,
     wearer: Option<&'a mut WearerMetrics>,
     safety: Option<&'a mut SafetyMetrics>,
+    muscles: Option<&'a mut crate::metrics::muscles::MuscleMetrics>,
 }
 
 impl<S: RecordSink + ?Sized> RecordSink for Fan<'_, S> {
@@ -27,14 +42,16 @@ impl<S: RecordSink + ?Sized> RecordSink for Fan<'_, S> {
         self.sink.start(layout)?;
         self.walking.as_mut().map_or(Ok(()), |w| w.start(layout))?;
         self.wearer.as_mut().map_or(Ok(()), |w| w.start(layout))?;
-        self.safety.as_mut().map_or(Ok(()), |w| w.start(layout))
+        self.safety.as_mut().map_or(Ok(()), |w| w.start(layout))?;
+        self.muscles.as_mut().map_or(Ok(()), |w| w.start(layout))
     }
     fn row(&mut self, row: &Row) -> Result<()> {
         self.metrics.row(row)?;
         self.sink.row(row)?;
         self.walking.as_mut().map_or(Ok(()), |w| w.row(row))?;
         self.wearer.as_mut().map_or(Ok(()), |w| w.row(row))?;
-        self.safety.as_mut().map_or(Ok(()), |w| w.row(row))
+        self.safety.as_mut().map_or(Ok(()), |w| w.row(row))?;
+        self.muscles.as_mut().map_or(Ok(()), |w| w.row(row))
     }
 }
 
@@ -55,6 +72,7 @@ pub struct Session<S: RecordSink> {
     walking: Option<WalkingMetrics>,
     wearer: Option<WearerMetrics>,
     safety: Option<SafetyMetrics>,
+    muscles: Option<crate::metrics::muscles::MuscleMetrics>,
     sink: S,
     /// Time spent simulating (s), for `steps_per_second`.
     wall: Duration,
@@ -81,9 +99,26 @@ impl<S: RecordSink> Session<S> {
         let walking =
             layout.contact.then(|| WalkingMetrics::new(sc.metrics.settle_s, sc.metrics.stride_s, data.clone()));
         let safety = sc.leg().map(|l| SafetyMetrics::new(safety_setup(&sc, l, data.as_deref())));
+        let muscles = match (&sc.muscles, &data) {
+            (Some(m), Some(d)) => {
+                Some(crate::metrics::muscles::MuscleMetrics::new(sc.metrics.settle_s, m.clone(), d.clone()))
+            }
+            _ => None,
+        };
         let wearer =
             data.filter(|_| layout.contact).map(|d| WearerMetrics::new(sc.metrics.settle_s, d, sc.cuff_limits));
-        Ok(Self { sim, metrics, walking, wearer, safety, sink, wall: Duration::ZERO, started: false, cancel: None })
+        Ok(Self {
+            sim,
+            metrics,
+            walking,
+            wearer,
+            safety,
+            muscles,
+            sink,
+            wall: Duration::ZERO,
+            started: false,
+            cancel: None,
+        })
     }
 
     /// Stop [`Self::run_to_end`] with [`crate::Error::Interrupted`] when `flag` is set.
@@ -110,14 +145,7 @@ impl<S: RecordSink> Session<S> {
         let layout = self.sim.layout();
         crate::record::check_log_names(&layout.log)
             .map_err(|m| crate::error::Error::input("controller", "logged channels", m))?;
-        Fan {
-            metrics: &mut self.metrics,
-            sink: &mut self.sink,
-            walking: self.walking.as_mut(),
-            wearer: self.wearer.as_mut(),
-            safety: self.safety.as_mut(),
-        }
-        .start(&layout)?;
+        fan!(self).start(&layout)?;
         self.started = true;
         Ok(())
     }
@@ -125,13 +153,7 @@ impl<S: RecordSink> Session<S> {
     /// One fixed step into the sinks (untimed).
     fn advance_inner(&mut self) -> Result<()> {
         self.ensure_started()?;
-        let mut fan = Fan {
-            metrics: &mut self.metrics,
-            sink: &mut self.sink,
-            walking: self.walking.as_mut(),
-            wearer: self.wearer.as_mut(),
-            safety: self.safety.as_mut(),
-        };
+        let mut fan = fan!(self);
         self.sim.advance(&mut fan)
     }
 
@@ -185,13 +207,7 @@ impl<S: RecordSink> Session<S> {
     pub fn finish(mut self) -> Result<Finished<S>> {
         self.timed(|s| {
             s.ensure_started()?;
-            let mut fan = Fan {
-                metrics: &mut s.metrics,
-                sink: &mut s.sink,
-                walking: s.walking.as_mut(),
-                wearer: s.wearer.as_mut(),
-                safety: s.safety.as_mut(),
-            };
+            let mut fan = fan!(s);
             s.sim.finish(&mut fan)
         })?;
         let sim = &self.sim;
@@ -199,6 +215,9 @@ impl<S: RecordSink> Session<S> {
         let mut summary = self.metrics.finish(self.wall.as_secs_f64());
         summary.contact = self.walking.map(|w| w.finish());
         summary.wearer = self.wearer.and_then(|w| w.finish());
+        if let Some(w) = summary.wearer.as_mut() {
+            w.metabolics = self.muscles.as_ref().and_then(|m| m.finish());
+        }
         summary.safety = self.safety.map(|s| s.finish(sim.controller_stop().map(|(t, _)| t)));
         summary.engine =
             sc.leg().map(|l| if l.reduced.is_some() || l.walker.is_some() { "reduced" } else { "rapier" }.to_string());

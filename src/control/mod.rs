@@ -20,6 +20,7 @@ mod discretize;
 mod dtznn;
 mod erl_smc;
 mod fdo;
+pub mod ideal;
 mod interface;
 pub mod isolate;
 mod knee_pd;
@@ -66,6 +67,10 @@ pub enum ControllerKind {
     Dtznn,
     /// A controller in a C shared library (sampled mode only; see [`plugin`]).
     Plugin,
+    /// An ideal device (walking runs on the carriage): a massless knee actuator that applies
+    /// the data's biological knee moment of one sign directly, up to a bound
+    /// (`[controller.ideal]`; the cylinder is disconnected: `actuator.mode = "free"`).
+    IdealMoment,
 }
 
 impl ControllerKind {
@@ -78,6 +83,7 @@ impl ControllerKind {
             ControllerKind::OpenLoop => "open_loop",
             ControllerKind::Dtznn => "dtznn",
             ControllerKind::Plugin => "plugin",
+            ControllerKind::IdealMoment => "ideal_moment",
         }
     }
 
@@ -89,7 +95,7 @@ impl ControllerKind {
     /// Whether the controller tracks a desired force (every built-in one but `open_loop`; a
     /// plugin decides for itself).
     pub fn needs_reference(&self) -> bool {
-        !matches!(self, ControllerKind::OpenLoop | ControllerKind::Plugin)
+        !matches!(self, ControllerKind::OpenLoop | ControllerKind::Plugin | ControllerKind::IdealMoment)
     }
 }
 
@@ -157,6 +163,9 @@ pub struct ControllerParams {
     /// controller stops, as `on_stop` says).
     #[serde(skip_serializing_if = "is_default_policy")]
     pub overrun_policy: OverrunPolicy,
+    /// `[controller.ideal]`: the ideal device of `kind = "ideal_moment"`.
+    #[serde(skip_serializing_if = "ideal::IdealParams::is_default")]
+    pub ideal: ideal::IdealParams,
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -214,6 +223,7 @@ impl Default for ControllerParams {
             compute_jitter_s: 0.0,
             compute_budget_s: None,
             overrun_policy: OverrunPolicy::ApplyLate,
+            ideal: Default::default(),
         }
     }
 }
@@ -280,6 +290,8 @@ impl ControllerSetup {
             }
             ControllerKind::ErlSmc => ControllerSetup::ErlSmc { k: p.k, delta: p.delta, zeta: p.zeta },
             ControllerKind::OpenLoop => ControllerSetup::OpenLoop { valve_command: p.open_loop_command },
+            // The cylinder is disconnected: its valve rests at centre.
+            ControllerKind::IdealMoment => ControllerSetup::OpenLoop { valve_command: 0.0 },
             ControllerKind::Dtznn => {
                 let sensors = SensorModel {
                     force_sd_n: cx.sensors.reading_sd(ChannelId::Force).unwrap_or(0.0),

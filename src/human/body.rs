@@ -187,6 +187,37 @@ pub struct WearerParams {
     pub ankle_damping_nm_s_per_rad: f64,
     /// Share of the data's ankle moment the wearer produces (0..=1). Default 1 (push-off).
     pub ankle_moment_share: f64,
+    /// Analyse the wearer's muscles (issue 39; walking runs on the carriage): each sample,
+    /// static optimisation of the hip, knee and ankle moments the wearer applies among the
+    /// leg's muscles, and their metabolic rate (`summary.json` `wearer.metabolics`). It
+    /// changes no dynamics. Default false.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub muscles: bool,
+    /// A muscle table made by `scripts/opensim-muscles` from an OpenSim model (a path,
+    /// relative to the scenario's folder). Default: the embedded gait10dof18musc.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub muscles_file: Option<String>,
+    /// What static optimisation minimises: `"activation_squared"` (default) or `"metabolic"`
+    /// (the muscles' metabolic rate, a local minimum).
+    #[serde(skip_serializing_if = "is_default")]
+    pub muscle_cost: crate::muscles::analysis::MuscleCost,
+    /// The metabolic model: `"umberger2010"` (default, Umberger et al. 2003/2010 as published)
+    /// or `"bhargava2004"`.
+    #[serde(skip_serializing_if = "is_default")]
+    pub metabolic_model: crate::muscles::metabolics::MetabolicModel,
+    /// The joint reserves' optimal moment (N m): a reserve costs `(R / this)^2`, as much as a
+    /// muscle at full activation per this many N m. Default 1 (OpenSim's reserve actuators).
+    /// 0.01..=1000.
+    #[serde(skip_serializing_if = "is_one")]
+    pub reserve_optimal_moment_nm: f64,
+}
+
+fn is_default<T: Default + PartialEq>(v: &T) -> bool {
+    *v == T::default()
+}
+
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
 }
 
 impl Default for WearerParams {
@@ -198,6 +229,11 @@ impl Default for WearerParams {
             ankle_stiffness_nm_per_rad: 300.0,
             ankle_damping_nm_s_per_rad: 5.0,
             ankle_moment_share: 1.0,
+            muscles: false,
+            muscles_file: None,
+            muscle_cost: Default::default(),
+            metabolic_model: Default::default(),
+            reserve_optimal_moment_nm: 1.0,
         }
     }
 }
@@ -228,6 +264,9 @@ pub struct BodyForces {
     pub ankle_torque_nm: f64,
     /// Tether (x) and support (z) on the pelvis.
     pub pelvis_force_n: [f64; 2],
+    /// An ideal device's torque at the knee (flexion +; `controller.kind = "ideal_moment"`):
+    /// not the wearer's, applied beside it.
+    pub device_knee_torque_nm: f64,
 }
 
 /// The body's force laws at data sample `d` and state `s` (see the module's table).
@@ -254,6 +293,7 @@ pub fn body_forces(hip: &HipParams, wearer: &WearerParams, d: &WalkingSample, s:
         ankle_torque_nm: imp(wearer.ankle_stiffness_nm_per_rad, wearer.ankle_damping_nm_s_per_rad, &d.ankle, s.ankle)
             - wearer.ankle_moment_share * d.ankle_moment_nm,
         pelvis_force_n: [tether, support.max(0.0)],
+        device_knee_torque_nm: 0.0,
     }
 }
 

@@ -322,6 +322,14 @@ impl LegSpec {
         self.parent_joint[link]
     }
 
+    /// The thigh's and the shank's sagittal lengths (m): the knee joint's origin in the thigh's
+    /// frame and the ankle joint's in the shank's (0 without an ankle).
+    pub fn thigh_shank_lengths_m(&self) -> (f64, f64) {
+        let sagittal = |j: &JointSpec| j.origin_xyz[0].hypot(j.origin_xyz[2]);
+        let knee = self.knee_joint();
+        (sagittal(knee), self.ankle_joint().map_or(0.0, sagittal))
+    }
+
     /// Robot name from the URDF.
     pub fn robot_name(&self) -> &str {
         &self.robot_name

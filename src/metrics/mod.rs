@@ -2,6 +2,7 @@
 //! rows of a run ([`SummaryBuilder`] is a [`RecordSink`]), so a run of any length needs
 //! constant memory for its figures. Used by the CLI, the studies and the tests.
 
+pub mod muscles;
 pub mod safety;
 pub mod walking;
 pub mod wearer;

@@ -146,6 +146,9 @@ pub struct WearerSummary {
     /// The cycle means for the plot (not written to `summary.json`).
     #[serde(skip)]
     pub cycle: Option<WearerCycle>,
+    /// What the wearer's muscles cost (`wearer.muscles`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub metabolics: Option<super::muscles::MetabolicsSummary>,
 }
 
 /// Means over the cycle (100 bins of 1 %, the data's clock) after the run-in: what
@@ -382,6 +385,7 @@ impl WearerMetrics {
             data_knee_range_deg: data_knee,
             phase_estimate: self.phase_log.map(|_| self.phase.finish(self.data.gait.stride_s)),
             cycle: self.cycle(),
+            metabolics: None,
         })
     }
 }

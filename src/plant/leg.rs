@@ -481,7 +481,7 @@ impl Plant for LegPlant {
             actuator_force_n: inputs.cylinder_force_n,
             shank_force: cuff,
             hip_torque_nm: body.hip_torque_nm,
-            knee_torque_nm: body.knee_torque_nm + knee_stop,
+            knee_torque_nm: body.knee_torque_nm + body.device_knee_torque_nm + knee_stop,
             ankle_torque_nm: body.ankle_torque_nm + ankle_stop,
             pelvis_force_n: body.pelvis_force_n,
         });

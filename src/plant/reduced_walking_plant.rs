@@ -173,7 +173,7 @@ impl WalkerPlant {
         q[PX] = body.pelvis_force_n[0];
         q[PZ] = body.pelvis_force_n[1];
         q[HIP] = body.hip_torque_nm;
-        q[KNEE] = body.knee_torque_nm + knee_stop + force_n * arm;
+        q[KNEE] = body.knee_torque_nm + body.device_knee_torque_nm + knee_stop + force_n * arm;
         q[ANKLE] = body.ankle_torque_nm + ankle_stop;
         let point = (cuff_force_n != 0.0).then(|| {
             // Perpendicular to the shank where the cuff moves when the knee flexes; positive w1

@@ -332,6 +332,15 @@ impl WalkingData {
 
     /// The thigh's angle to the vertical (rad, forward positive): hip flexion minus the
     /// pelvic tilt (and its rates, when it is the data's).
+    /// The pelvis's anterior tilt the thigh's angle leaves out at `t_s` (rad, with its rates):
+    /// the data's hip flexion is the thigh's angle plus this.
+    pub fn pelvic_tilt_at(&self, t_s: f64) -> RefSample {
+        match self.pelvic_tilt {
+            PelvicTilt::Constant { rad, .. } => RefSample { value: rad, ..Default::default() },
+            PelvicTilt::Data { .. } => self.gait.pelvis_tilt_at(t_s).unwrap_or_default(),
+        }
+    }
+
     fn thigh_at(&self, t_s: f64) -> RefSample {
         let mut h = self.gait.hip_at(t_s);
         match self.pelvic_tilt {

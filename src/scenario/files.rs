@@ -114,6 +114,7 @@ pub struct Resources {
     gaits: Mutex<HashMap<(String, usize), Arc<GaitCycle>>>,
     cascades: Mutex<HashMap<CascadeKey, Arc<FourierSeries>>>,
     plugins: Mutex<HashMap<PathBuf, (Arc<PluginLibrary>, String)>>,
+    muscles: Mutex<HashMap<String, Arc<crate::muscles::MuscleSet>>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -242,6 +243,28 @@ impl Resources {
         let entry = (Arc::new(lib), sha);
         c.insert(path, entry.clone());
         Ok(entry)
+    }
+
+    /// The muscle table `wearer.muscles_file` names (parsed once per content), with its text's
+    /// origin and hash.
+    pub fn muscle_set(
+        &self,
+        source_name: &str,
+        file: &str,
+        base_dir: Option<&Path>,
+    ) -> Result<(Arc<crate::muscles::MuscleSet>, InputText)> {
+        const KEY: &str = "wearer.muscles_file";
+        let path = resolve_path(source_name, KEY, file, base_dir)?;
+        let text = read_capped(&path, crate::muscles::MAX_FILE_BYTES)?;
+        let t =
+            InputText { origin: path.display().to_string(), sha256: sha256_hex(text.as_bytes()), text: Arc::from("") };
+        let mut c = lock(&self.muscles);
+        if let Some(m) = c.get(&t.sha256) {
+            return Ok((m.clone(), t));
+        }
+        let m = Arc::new(crate::muscles::MuscleSet::parse(&text, &t.origin)?);
+        c.insert(t.sha256.clone(), m.clone());
+        Ok((m, t))
     }
 
     /// A gait inverse-dynamics fit, built once per key with `build`.

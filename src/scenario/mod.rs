@@ -191,6 +191,11 @@ pub struct OutputSection {
     /// `"csv"` (default): `timeseries.csv`; `"parquet"`: `timeseries.parquet` (the same
     /// columns as doubles, SNAPPY-compressed; for long runs).
     pub format: OutputFormat,
+    /// Per muscle columns (`muscle_<name>_activation`, `_fiber_length_norm`,
+    /// `_fiber_velocity_norm`, `_active_force_n`, `_force_n`, `_metabolic_w`) and the muscle
+    /// analysis's totals, last (needs `wearer.muscles = true`). Default false.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub muscles: bool,
 }
 
 /// `output.format`.
@@ -206,7 +211,7 @@ pub enum OutputFormat {
 
 impl Default for OutputSection {
     fn default() -> Self {
-        Self { every_steps: 1, format: OutputFormat::Csv }
+        Self { every_steps: 1, format: OutputFormat::Csv, muscles: false }
     }
 }
 

@@ -84,6 +84,34 @@ impl Ctx<'_> {
         &self.s.source_name
     }
 
+    /// The wearer's muscles (`wearer.muscles`): the table (embedded, or the file's, recorded by
+    /// its absolute path) scaled to the leg's thigh and shank, and the analysis's settings.
+    fn muscles(
+        &mut self,
+        leg: Option<&crate::leg::LegSpec>,
+    ) -> Result<Option<Arc<crate::muscles::analysis::MuscleSetup>>> {
+        let w = self.file.wearer.clone();
+        let (true, Some(leg)) = (w.muscles, leg) else { return Ok(None) };
+        let set = match &w.muscles_file {
+            None => crate::muscles::MuscleSet::builtin()?,
+            Some(f) => {
+                let (set, text) = self.res.muscle_set(self.src(), f, self.s.base_dir.as_deref())?;
+                self.file.wearer.muscles_file = Some(text.origin.clone());
+                self.inputs.push(InputRecord { key: "wearer.muscles_file", origin: text.origin, sha256: text.sha256 });
+                set
+            }
+        };
+        let (thigh, shank) = leg.thigh_shank_lengths_m();
+        let scaled = Arc::new(set.scaled(set.scale_for(thigh, shank)));
+        Ok(Some(Arc::new(crate::muscles::analysis::MuscleSetup::new(
+            scaled,
+            w.muscle_cost,
+            w.metabolic_model,
+            w.reserve_optimal_moment_nm,
+            self.file.hip.subject_mass(),
+        ))))
+    }
+
     /// The plant's leg: `leg.urdf` with its knee and ankle joints, the ankle free with ground
     /// contact, its mass scale.
     fn leg_model(&mut self) -> Result<Arc<crate::scenario::files::LoadedLeg>> {
@@ -697,6 +725,14 @@ impl Scenario {
             resolved.file.hip.subject_mass_kg = None;
             return Ok(resolved);
         }
+        if self.file.controller.kind == ControllerKind::IdealMoment
+            && self.file.actuator.mode != crate::hydraulics::ActuatorMode::Free
+        {
+            // The ideal device's cylinder is disconnected (recorded so).
+            let mut free = self.clone();
+            free.file.actuator.mode = crate::hydraulics::ActuatorMode::Free;
+            return free.resolve(res);
+        }
         let f = &self.file;
         let mut cx = Ctx { s: self, res, file: f.clone(), inputs: Vec::new(), warnings: Vec::new() };
         let leg = match f.plant.kind {
@@ -767,6 +803,10 @@ impl Scenario {
             sensors: f.sensors.clone(),
             cuff_limits: f.cuff_limits,
             safety: f.safety,
+            muscles: cx.muscles(leg.as_deref().map(|l| &*l.model))?,
+            muscle_columns: f.output.muscles,
+            ideal: (f.controller.kind == ControllerKind::IdealMoment)
+                .then(|| (f.controller.ideal, f.hip.subject_mass())),
         };
         Ok(ResolvedScenario {
             source_name: self.source_name.clone(),

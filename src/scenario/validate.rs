@@ -632,6 +632,38 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
     }
     c.range("wearer.knee_moment_share", f.wearer.knee_moment_share, 0.0, 1.0)?;
     c.range("wearer.ankle_moment_share", f.wearer.ankle_moment_share, 0.0, 1.0)?;
+    c.range("wearer.reserve_optimal_moment_nm", f.wearer.reserve_optimal_moment_nm, 0.01, 1000.0)?;
+    let carriage_gait = f.plant.kind == PlantKind::Leg
+        && f.hip.mode == Some(crate::human::HipMode::Carriage)
+        && f.reference.kind == ReferenceKind::Gait;
+    c.range("controller.ideal.max_nm_per_kg", f.controller.ideal.max_nm_per_kg, 0.0, 5.0)?;
+    if f.controller.kind == ControllerKind::IdealMoment && !carriage_gait {
+        return Err(c.fail(
+            "controller.kind",
+            "\"ideal_moment\" applies the data's knee moment: it needs a walking run (plant.kind = \"leg\", hip.mode = \"carriage\", reference.kind = \"gait\")",
+        ));
+    }
+    if f.controller.kind != ControllerKind::IdealMoment && !f.controller.ideal.is_default() {
+        return Err(c.fail("controller.ideal", "has no effect without controller.kind = \"ideal_moment\""));
+    }
+    if f.wearer.muscles && !carriage_gait {
+        return Err(c.fail(
+            "wearer.muscles",
+            "the muscle analysis needs a walking run: plant.kind = \"leg\", hip.mode = \"carriage\" and reference.kind = \"gait\"",
+        ));
+    }
+    if !f.wearer.muscles {
+        for (k, set) in [
+            ("wearer.muscles_file", f.wearer.muscles_file.is_some()),
+            ("output.muscles", f.output.muscles),
+            ("wearer.muscle_cost", f.wearer.muscle_cost != Default::default()),
+            ("wearer.metabolic_model", f.wearer.metabolic_model != Default::default()),
+        ] {
+            if set {
+                return Err(c.fail(k, "has no effect without wearer.muscles = true"));
+            }
+        }
+    }
     if let Some(s) = h.other_leg_share {
         c.range("hip.other_leg_share", s, 0.0, 1.0)?;
     }

@@ -159,6 +159,8 @@ pub struct Simulation {
     faults: faults::FaultRun,
     /// The controller's modelled computation as it goes.
     compute: compute::ComputeRun,
+    /// The wearer's muscle analysis (`wearer.muscles`).
+    muscles: Option<crate::muscles::analysis::Analysis>,
 }
 
 /// Build the plant of a model.
@@ -237,6 +239,7 @@ impl Simulation {
         let state = State { hyd: sc.cylinder.initial_state(), ..Default::default() };
         let output = matches!(control, ControlBlock::Sampled(_)).then(ControlOutput::default);
         let held = Held { output, events: Self::gait_events(&sc), ..Default::default() };
+        let muscles = sc.muscles.clone().map(crate::muscles::analysis::Analysis::new);
         Ok(Self {
             faults: faults::FaultRun::new(&sc.faults, sc.seed),
             compute: compute::ComputeRun::new(sc.seed),
@@ -259,6 +262,7 @@ impl Simulation {
             begun: None,
             max_substeps: 1,
             substepped_steps: 0,
+            muscles,
         })
     }
 
@@ -280,6 +284,10 @@ impl Simulation {
             device: self.sc.device_columns,
             faults: !self.sc.faults.is_empty() || self.sc.on_stop == crate::control::OnStop::Failsafe,
             log: self.log_names(),
+            muscles: match (&self.sc.muscles, self.sc.muscle_columns) {
+                (Some(m), true) => m.column_names(),
+                _ => Vec::new(),
+            },
         }
     }
 
@@ -503,7 +511,7 @@ impl Simulation {
         let f = d.cylinder_force(&self.state, v, &d.reference_at(t, &self.held));
         let arm = plant.leg_row().map_or(0.0, |l| l.moment_arm_m);
         let w1 = self.interaction(t, force_rate_n_per_s);
-        Some(d.device_truth(&self.state, plant, f, arm, w1, true))
+        Some(d.device_truth(&self.state, plant, f, arm, w1, true, &self.held))
     }
 
     /// Step 2 of a sampled step: hold the controller's output (clipped to the valve limit, and
@@ -658,7 +666,12 @@ impl Simulation {
             }
             (sample.pelvis_x_m, sample.pelvis_x_rate_m_s) = w.pelvis_x_at(t, b.pelvis_drift_m_s);
         }
-        Some(crate::human::body_forces(&b.hip, &b.wearer, &sample, &state))
+        let mut f = crate::human::body_forces(&b.hip, &b.wearer, &sample, &state);
+        if let Some((ideal, mass_kg)) = &self.sc.ideal {
+            // The data's moment is extensor positive, the knee's torque flexion positive.
+            f.device_knee_torque_nm = -ideal.moment_nm(sample.knee_moment_nm, *mass_kg);
+        }
+        Some(f)
     }
 
     /// Advance one step with the run's own controller; the row of the step's start goes to
@@ -737,12 +750,32 @@ impl Simulation {
             row.log = l.log;
         }
         row.fault_active = self.any_fault_active(t);
+        row.muscles = self.muscle_sample(t);
         sink.row(&row)?;
         let cuff_force_n = if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 };
         // The integrator's first stage is s0 unless coupled mechanics now see another cuff force.
         self.reuse_first = self.plant.coupled().is_none() || self.held.cuff_force_n == cuff_force_n;
         self.held.cuff_force_n = cuff_force_n;
         Ok(s0)
+    }
+
+    /// The wearer's muscles at `t` (with `wearer.muscles`): the joints' angles and rates (the
+    /// hip's anatomical flexion, the thigh's angle plus the data's pelvic tilt) and the moments
+    /// the body applies over the step.
+    fn muscle_sample(&mut self, t: f64) -> Option<Arc<[f64]>> {
+        let a = self.muscles.as_mut()?;
+        let b = self.plant.body_state()?;
+        let tilt = match self.sc.leg().and_then(|l| l.body.as_ref()).map(|b| &b.targets) {
+            Some(crate::human::BodyTargets::Walking(w)) => w.pelvic_tilt_at(t),
+            _ => Default::default(),
+        };
+        let f = self.held.body.unwrap_or_default();
+        let j = crate::muscles::analysis::Joints {
+            q_rad: [b.hip.0 + tilt.value, b.knee.0, b.ankle.0],
+            qd_rad_s: [b.hip.1 + tilt.rate, b.knee.1, b.ankle.1],
+            moment_nm: [f.hip_torque_nm, f.knee_torque_nm, f.ankle_torque_nm],
+        };
+        Some(Arc::from(a.sample(&j).values))
     }
 
     /// Integrate the hydraulic (and predictor, coupled knee, continuous controller) states over
@@ -926,6 +959,7 @@ impl Simulation {
             row.log = l.log;
         }
         row.fault_active = self.any_fault_active(t);
+        row.muscles = self.muscle_sample(t);
         row
     }
 

@@ -76,6 +76,13 @@ pub struct Model {
     pub safety: crate::metrics::SafetyLimits,
     /// The cuff interaction-force limits of the wearer's figures (`[cuff_limits]`).
     pub cuff_limits: crate::metrics::CuffLimits,
+    /// The wearer's muscle analysis (`wearer.muscles`; walking runs).
+    pub muscles: Option<std::sync::Arc<crate::muscles::analysis::MuscleSetup>>,
+    /// The time series carries the muscles' columns (`output.muscles`).
+    pub muscle_columns: bool,
+    /// The ideal device (`controller.kind = "ideal_moment"`) and the subject's mass (kg) its
+    /// bound is per.
+    pub ideal: Option<(crate::control::ideal::IdealParams, f64)>,
 }
 
 impl Model {

@@ -387,14 +387,16 @@ impl Dynamics<'_> {
     }
 
     /// What the device's sensors measure at state `s` with the net cylinder force
-    /// `cylinder_force_n` (N) on the moment arm `arm_m` (m/rad) and the interaction force `w1`;
-    /// the segments' kinematics only with `kinematics`.
+    /// `cylinder_force_n` (N) on the moment arm `arm_m` (m/rad), the interaction force `w1` and
+    /// what is held over the step (an ideal device's moment); the segments' kinematics only
+    /// with `kinematics`.
     ///
     /// The cuffs carry the device's knee moment `M = -F_cyl dL/dq` (extensor positive) over
     /// their lever arms about the knee (the exoskeleton's frames strapped to the limb at one
     /// cuff each, their own inertia neglected: an extensor moment presses both cuffs
     /// forward, the knee back), and the shank cuff the human's interaction force w1 of
     /// `human.mode = "cuff"` (applied there, forward when it extends the knee).
+    #[allow(clippy::too_many_arguments)]
     pub fn device_truth(
         &self,
         s: &State,
@@ -403,12 +405,14 @@ impl Dynamics<'_> {
         arm_m: f64,
         w1: f64,
         kinematics: bool,
+        held: &Held,
     ) -> DeviceTruth {
         let cyl = &self.sc.cylinder;
         let (pressure_a_pa, pressure_b_pa) = cyl.pressures_pa(&s.hyd);
         let leg = self.sc.leg();
         let (thigh, shank) = leg.map_or((f64::NAN, f64::NAN), |l| {
-            let m = -cylinder_force_n * arm_m;
+            // An ideal device's moment goes through the cuffs as the cylinder's does.
+            let m = -cylinder_force_n * arm_m - held.body.map_or(0.0, |b| b.device_knee_torque_nm);
             let w = if self.sc.human.mode == HumanMode::Cuff { arm_m.signum() * w1 } else { 0.0 };
             (m / l.cuff_lever_m.0, m / l.cuff_lever_m.1 + w)
         });
@@ -466,8 +470,11 @@ impl Dynamics<'_> {
         let leg = plant.leg_row();
         let cylinder_force_n = self.cylinder_force(s, p.velocity_m_s, &r);
         let device = leg.map(|l| {
-            let truth = self.device_truth(s, plant, cylinder_force_n, l.moment_arm_m, w1, self.sc.device_columns);
-            self.device_row(&truth, s, cylinder_force_n, l.moment_arm_m)
+            let truth = self.device_truth(s, plant, cylinder_force_n, l.moment_arm_m, w1, self.sc.device_columns, held);
+            let mut row = self.device_row(&truth, s, cylinder_force_n, l.moment_arm_m);
+            // An ideal device's moment is the device's too (extensor positive).
+            row.device_knee_moment_nm -= held.body.map_or(0.0, |b| b.device_knee_torque_nm);
+            row
         });
         Row {
             t_s: t,
@@ -494,6 +501,7 @@ impl Dynamics<'_> {
             device,
             fault_active: false,
             log: Default::default(),
+            muscles: None,
         }
     }
 }

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 const LAYERS: [&[&str]; 11] = [
     &["error", "integrator", "faults"],
     &["record", "hydraulics", "sensors", "fsio"],
-    &["disturbance", "leg"],
+    &["disturbance", "leg", "muscles"],
     &["reference"],
     &["human", "control", "metrics"],
     &["plant", "hil"],

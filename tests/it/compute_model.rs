@@ -19,7 +19,7 @@ fn run(extra: &[&str]) -> exoleg::Result<(exoleg::metrics::Summary, MemoryRecord
 }
 
 fn truth(r: &Row) -> String {
-    format!("{:?}", Row { fault_active: false, ..*r })
+    format!("{:?}", Row { fault_active: false, ..r.clone() })
 }
 
 /// A delay of one sample period is the overrun fault of one sample: every row the same (the

@@ -67,7 +67,7 @@ fn probe_run(fault: Option<&str>) -> (Vec<(f64, f64, f64)>, MemoryRecord) {
 /// The record's truth without the fault flag, the command and the lumped disturbance (which
 /// holds the command): what the fault must not touch.
 fn truth(r: &Row) -> String {
-    format!("{:?}", Row { fault_active: false, valve_command: 0.0, lumped_disturbance_n_per_s2: 0.0, ..*r })
+    format!("{:?}", Row { fault_active: false, valve_command: 0.0, lumped_disturbance_n_per_s2: 0.0, ..r.clone() })
 }
 
 /// Each sensor fault against the unfaulted run: from the onset sample on, a stuck channel

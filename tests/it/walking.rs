@@ -36,7 +36,7 @@ pub(crate) fn standing(knee_deg: f64, engine: &str) -> exoleg::record::Row {
     assert!(c.contact_penetration_m < 0.012, "{knee_deg}: penetration {}", c.contact_penetration_m);
     assert!((l.knee_angle_deg - knee_deg).abs() < 1e-3, "{knee_deg}: knee {}", l.knee_angle_deg);
     assert!(c.knee_moment_nm > 0.0, "a standing knee needs an extensor moment");
-    *last
+    last.clone()
 }
 
 #[test]

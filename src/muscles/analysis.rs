@@ -1,0 +1,298 @@
+//! The muscle analysis of a run's samples: at each, the muscles' lengths and rates from the
+//! joint angles and rates, their force-length-velocity at them, static optimisation of the
+//! joint moments the wearer applied, and the metabolic rate of the result. OpenSim's static
+//! optimisation with its metabolic probes, on the run as it goes; it changes no dynamics.
+//!
+//! The activations are static: the excitation is taken equal to the activation (OpenSim's
+//! static optimisation has no activation dynamics either), so the probes' `A` is the
+//! activation.
+
+use super::metabolics::{MetabolicModel, MuscleConstants, MuscleState};
+use super::optimize::{Column, Problem, Solver};
+use super::{curves, MuscleSet};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// What static optimisation minimises (`wearer.muscle_cost`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MuscleCost {
+    /// The sum of squared activations (OpenSim's default, Crowninshield and Brand 1981).
+    #[default]
+    ActivationSquared,
+    /// The muscles' metabolic rate (a local minimum from the squared-activation optimum).
+    Metabolic,
+}
+
+impl MuscleCost {
+    /// The name in scenario files.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            MuscleCost::ActivationSquared => "activation_squared",
+            MuscleCost::Metabolic => "metabolic",
+        }
+    }
+}
+
+/// Values per muscle in a sample ([`Sample::values`]): activation, normalised fibre length,
+/// fibre velocity over l_opt (1/s), active fibre force (N), tendon force (N), metabolic rate (W).
+pub const PER_MUSCLE: [&str; 6] =
+    ["activation", "fiber_length_norm", "fiber_velocity_norm", "active_force_n", "force_n", "metabolic_w"];
+/// The sample's totals after the muscles' values.
+pub const TOTALS: [&str; 10] = [
+    "muscles_metabolic_w",
+    "muscles_effort",
+    "reserve_hip_nm",
+    "reserve_knee_nm",
+    "reserve_ankle_nm",
+    "wearer_hip_moment_nm",
+    "wearer_knee_moment_nm",
+    "wearer_ankle_moment_nm",
+    "muscle_hip_angle_deg",
+    "muscles_outside_table",
+];
+
+/// The analysis's fixed part: the muscles scaled to the leg, the settings, and each muscle's
+/// metabolic constants.
+#[derive(Debug, Clone)]
+pub struct MuscleSetup {
+    /// The muscles, scaled.
+    pub set: Arc<MuscleSet>,
+    /// What static optimisation minimises.
+    pub cost: MuscleCost,
+    /// The probe.
+    pub model: MetabolicModel,
+    /// The reserves' optimal moment (N m).
+    pub reserve_nm: f64,
+    /// The subject's body mass (kg), for the basal rate and W/kg.
+    pub body_mass_kg: f64,
+    constants: Vec<MuscleConstants>,
+}
+
+impl MuscleSetup {
+    /// The analysis of `set` (scaled) with its settings, for a subject of `body_mass_kg`.
+    pub fn new(
+        set: Arc<MuscleSet>,
+        cost: MuscleCost,
+        model: MetabolicModel,
+        reserve_nm: f64,
+        body_mass_kg: f64,
+    ) -> Self {
+        let constants = set
+            .muscles
+            .iter()
+            .map(|m| MuscleConstants {
+                mass_kg: m.params.mass_kg(),
+                slow_twitch: m.params.slow_twitch_fraction,
+                optimal_length_m: m.params.optimal_fiber_length_m,
+                max_velocity_lopt_per_s: m.params.max_contraction_velocity_lopt_per_s,
+            })
+            .collect();
+        Self { set, cost, model, reserve_nm, body_mass_kg, constants }
+    }
+
+    /// The number of values a sample carries.
+    pub fn width(&self) -> usize {
+        self.set.muscles.len() * PER_MUSCLE.len() + TOTALS.len()
+    }
+
+    /// The muscles' names.
+    pub fn names(&self) -> impl Iterator<Item = &str> {
+        self.set.muscles.iter().map(|m| m.params.name.as_str())
+    }
+
+    /// The column names of a sample's values (`muscle_<name>_<value>`, then the totals).
+    pub fn column_names(&self) -> Vec<String> {
+        let mut out: Vec<String> =
+            self.names().flat_map(|n| PER_MUSCLE.iter().map(move |v| format!("muscle_{n}_{v}"))).collect();
+        out.extend(TOTALS.iter().map(|s| s.to_string()));
+        out
+    }
+}
+
+/// One sample's inputs: joint angles and rates (rad, rad/s; hip flexion, knee flexion, ankle
+/// dorsiflexion) and the moments the wearer applies (N m, the same signs).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Joints {
+    /// Angles (rad).
+    pub q_rad: [f64; 3],
+    /// Rates (rad/s).
+    pub qd_rad_s: [f64; 3],
+    /// Moments (N m).
+    pub moment_nm: [f64; 3],
+}
+
+/// A sample's results, flat ([`PER_MUSCLE`] per muscle, then [`TOTALS`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// The values.
+    pub values: Vec<f64>,
+}
+
+/// The analysis as it runs: the solver's warm start and the last activations.
+#[derive(Debug, Clone)]
+pub struct Analysis {
+    setup: Arc<MuscleSetup>,
+    solver: Solver,
+    act: Vec<f64>,
+    columns: Vec<Column>,
+    passive: Vec<f64>,
+    fibres: Vec<(curves::Fibre, f64, f64)>,
+    w: Vec<f64>,
+    c: Vec<f64>,
+}
+
+impl Analysis {
+    /// A fresh analysis.
+    pub fn new(setup: Arc<MuscleSetup>) -> Self {
+        let n = setup.set.muscles.len();
+        Self {
+            setup,
+            solver: Solver::default(),
+            act: vec![curves::MIN_ACTIVATION; n],
+            columns: vec![[0.0; 3]; n],
+            passive: vec![0.0; n],
+            fibres: vec![Default::default(); n],
+            w: vec![1.0; n],
+            c: Vec::new(),
+        }
+    }
+
+    /// The setup.
+    pub fn setup(&self) -> &Arc<MuscleSetup> {
+        &self.setup
+    }
+
+    /// The muscles at `j`: fibres, the moment columns and the passive moments.
+    fn muscles_at(&mut self, j: &Joints) -> ([f64; 3], usize) {
+        let set = &self.setup.set;
+        let mut passive_moment = [0.0; 3];
+        let mut outside = 0;
+        for (i, m) in set.muscles.iter().enumerate() {
+            let (l, arms) = set.length_and_arms(i, j.q_rad);
+            outside += usize::from(!m.path.covers(j.q_rad));
+            let v_mt = -(arms[0] * j.qd_rad_s[0] + arms[1] * j.qd_rad_s[1] + arms[2] * j.qd_rad_s[2]);
+            let p = &m.params;
+            let f = curves::fibre_kinematics(
+                l,
+                v_mt,
+                p.tendon_slack_length_m,
+                p.optimal_fiber_length_m,
+                p.pennation_at_optimal_rad,
+            );
+            let ln = f.length_norm.clamp(curves::MIN_NORM_FIBER_LENGTH, curves::MAX_NORM_FIBER_LENGTH);
+            let vn = (f.velocity_per_s / p.max_contraction_velocity_lopt_per_s).clamp(-1.0, 1.0);
+            let fl = curves::active_force_length(ln);
+            let k = p.max_isometric_force_n * fl * curves::force_velocity(vn) * f.cos_pennation;
+            let pe = p.max_isometric_force_n * curves::passive_force_length(ln) * f.cos_pennation;
+            self.columns[i] = arms.map(|r| r * k);
+            self.passive[i] = pe;
+            for (pm, r) in passive_moment.iter_mut().zip(arms) {
+                *pm += r * pe;
+            }
+            self.fibres[i] = (f, fl, k);
+        }
+        (passive_moment, outside)
+    }
+
+    /// The metabolic rate (W) of muscle `i` at activation `a`.
+    fn rate_w(&self, i: usize, a: f64) -> f64 {
+        let (f, fl, k) = self.fibres[i];
+        let p = &self.setup.set.muscles[i].params;
+        let s = MuscleState {
+            excitation: a,
+            activation: a,
+            length_norm: f.length_norm,
+            velocity_m_s: f.velocity_per_s * p.optimal_fiber_length_m,
+            active_force_n: a * k / f.cos_pennation,
+            passive_force_n: self.passive[i] / f.cos_pennation,
+            force_length: fl,
+        };
+        self.setup.model.rate_w(&self.setup.constants[i], &s)
+    }
+
+    /// The sample at `j`.
+    pub fn sample(&mut self, j: &Joints) -> Sample {
+        let (passive_moment, outside) = self.muscles_at(j);
+        let b = [0, 1, 2].map(|k| j.moment_nm[k] - passive_moment[k]);
+        let n = self.act.len();
+        self.w.iter_mut().for_each(|w| *w = 1.0);
+        self.c.clear();
+        let rho = self.setup.reserve_nm;
+        let p = Problem { columns: &self.columns, b, w: &self.w, c: &self.c, lo: curves::MIN_ACTIVATION, rho };
+        let mut out = self.solver.solve(&p, &mut self.act);
+        if self.setup.cost == MuscleCost::Metabolic {
+            out.reserve_nm = self.metabolic_descent(b);
+        }
+        let mut values = Vec::with_capacity(self.setup.width());
+        let (mut total_w, mut effort) = (0.0, 0.0);
+        for i in 0..n {
+            let a = self.act[i];
+            let (f, _, k) = self.fibres[i];
+            let rate = self.rate_w(i, a);
+            total_w += rate;
+            effort += a * a;
+            let active = a * k / f.cos_pennation;
+            values.extend_from_slice(&[a, f.length_norm, f.velocity_per_s, active, a * k + self.passive[i], rate]);
+        }
+        values.extend_from_slice(&[total_w, effort]);
+        values.extend_from_slice(&out.reserve_nm);
+        values.extend_from_slice(&j.moment_nm);
+        values.push(j.q_rad[0].to_degrees());
+        values.push(outside as f64);
+        Sample { values }
+    }
+
+    /// Sequential convex quadratics of the muscles' metabolic rates from the activations now
+    /// (the squared-activation optimum): each step's quadratic has the rate's slope and its
+    /// curvature (floored to stay convex), a step is kept when the true objective (the rates
+    /// and the reserves at 100 W per (rho N m)^2) falls. Returns the reserves.
+    fn metabolic_descent(&mut self, b: [f64; 3]) -> [f64; 3] {
+        let n = self.act.len();
+        let rho = self.setup.reserve_nm / 10.0;
+        let objective = |this: &Self, x: &[f64]| -> f64 {
+            let mut r = b;
+            for (col, a) in this.columns.iter().zip(x) {
+                (0..3).for_each(|k| r[k] -= col[k] * a);
+            }
+            (0..n).map(|i| this.rate_w(i, x[i])).sum::<f64>() + r.iter().map(|v| (v / rho).powi(2)).sum::<f64>()
+        };
+        let mut best = objective(self, &self.act);
+        let h = 1e-4;
+        for _ in 0..12 {
+            let x0 = self.act.clone();
+            self.c.clear();
+            for i in 0..n {
+                let a = x0[i].clamp(curves::MIN_ACTIVATION + h, 1.0 - h);
+                let (e0, ep, em) = (self.rate_w(i, a), self.rate_w(i, a + h), self.rate_w(i, a - h));
+                let slope = (ep - em) / (2.0 * h);
+                let curv = ((ep - 2.0 * e0 + em) / (h * h)).max(1e-3 * self.setup.constants[i].mass_kg * 100.0);
+                self.w[i] = 0.5 * curv;
+                self.c.push(curv * x0[i] - slope);
+            }
+            let p = Problem { columns: &self.columns, b, w: &self.w, c: &self.c, lo: curves::MIN_ACTIVATION, rho };
+            let mut x = x0.clone();
+            self.solver.solve(&p, &mut x);
+            let mut step = 1.0;
+            let mut improved = false;
+            while step > 1e-3 {
+                let trial: Vec<f64> = x0.iter().zip(&x).map(|(a, b)| a + step * (b - a)).collect();
+                let f = objective(self, &trial);
+                if f < best - 1e-9 * best.abs() {
+                    (best, improved) = (f, true);
+                    self.act = trial;
+                    break;
+                }
+                step *= 0.5;
+            }
+            if !improved {
+                break;
+            }
+        }
+        let mut r = b;
+        for (col, a) in self.columns.iter().zip(&self.act) {
+            (0..3).for_each(|k| r[k] -= col[k] * a);
+        }
+        r
+    }
+}
