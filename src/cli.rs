@@ -113,6 +113,11 @@ pub enum Command {
         /// Also write leg_motion.gif: the leg in motion (leg plant only).
         #[arg(long)]
         animate: bool,
+        /// Also run the scenario without the device's help (the cylinder disconnected; an
+        /// ideal device gives no moment) and report the metabolic rate's change against it
+        /// (needs wearer.muscles = true).
+        #[arg(long)]
+        baseline: bool,
     },
     /// Run many variations of a scenario in parallel: a full grid or a Monte-Carlo sample.
     /// Writes DIR/runs.jsonl (one line per run) and DIR/aggregate.csv (min/median/max).
@@ -229,6 +234,27 @@ pub enum Command {
         /// The URDF file to write (`-`: standard output).
         #[arg(long, default_value = "-")]
         out: PathBuf,
+    },
+    /// The wearer's muscles at a pose: each muscle's parameters, its muscle-tendon length and
+    /// its moment arms about the hip, knee and ankle (hip flexion +, knee flexion +, ankle
+    /// dorsiflexion +; r = -dL/dq, so a knee flexor's knee arm is positive), the source model
+    /// and its muscles' names. Scaled to the scenario's leg unless --generic.
+    Muscles {
+        /// Scenario whose leg and `wearer.muscles_file` to use. Default: the embedded default
+        /// scenario's leg and the built-in muscles.
+        scenario: Option<PathBuf>,
+        /// The pose: hip flexion, knee flexion, ankle dorsiflexion (deg).
+        #[arg(long, value_name = "HIP_DEG,KNEE_DEG,ANKLE_DEG", allow_hyphen_values = true)]
+        pose: String,
+        /// The source model's own size (no scaling to the leg).
+        #[arg(long)]
+        generic: bool,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Override any scenario key (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        sets: Vec<String>,
     },
     /// Run every trial of folders of gait CSVs, each folder with its subjects.csv, with each
     /// subject's numbers alone, in parallel; compare each with its data. Writes
@@ -450,16 +476,101 @@ fn warn(warnings: &[String]) {
     }
 }
 
+/// `exoleg muscles`: the scenario's muscles (scaled to its leg, or the source model's own
+/// size) at a pose, as a table or JSON.
+fn cmd_muscles(scenario: Option<PathBuf>, pose: &str, generic: bool, json: bool, sets: Vec<String>) -> Result<i32> {
+    let parts: Vec<&str> = pose.split(',').map(str::trim).collect();
+    let angles: Vec<f64> = parts.iter().filter_map(|p| p.parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
+    if parts.len() != 3 || angles.len() != 3 || angles.iter().any(|a| a.abs() > 360.0) {
+        return Err(Error::input("--pose", "", "give three angles in degrees, HIP,KNEE,ANKLE (each -360..=360)"));
+    }
+    let loaded = Scenario::load(scenario.as_deref(), &sets)?;
+    let res = Resources::new();
+    let set = match &loaded.file.wearer.muscles_file {
+        None => crate::muscles::MuscleSet::builtin()?,
+        Some(f) => res.muscle_set(&loaded.source_name, f, loaded.base_dir.as_deref())?.0,
+    };
+    let set = if generic {
+        (*set).clone()
+    } else {
+        let sc = loaded.resolve(&res)?;
+        let leg = sc.model.leg().ok_or_else(|| {
+            Error::input(
+                &sc.source_name,
+                "plant.kind",
+                "the muscles scale to the leg: plant.kind = \"leg\" (or --generic)",
+            )
+        })?;
+        let (thigh, shank) = leg.model.thigh_shank_lengths_m();
+        set.scaled(set.scale_for(thigh, shank))
+    };
+    let q = [angles[0].to_radians(), angles[1].to_radians(), angles[2].to_radians()];
+    let muscles = set.at_pose(q);
+    if json {
+        let v = serde_json::json!({
+            "model": set.model, "table": set.source, "citation": set.citation, "credits": set.credits,
+            "scale": set.scale, "source": set.info, "pose_deg": {"hip": angles[0], "knee": angles[1], "ankle": angles[2]},
+            "muscles": muscles,
+        });
+        println!("{}", serde_json::to_string_pretty(&v).map_err(|e| Error::Usage(e.to_string()))?);
+        return Ok(EXIT_OK);
+    }
+    print_muscles(&set, &angles, &muscles);
+    Ok(EXIT_OK)
+}
+
+fn print_muscles(set: &crate::muscles::MuscleSet, angles: &[f64], muscles: &[crate::muscles::MusclePose]) {
+    let size =
+        if set.scale == 1.0 { "its own size".to_string() } else { format!("scaled x{:.4} to the leg", set.scale) };
+    println!("model      {} ({}), {size}", set.model, set.source);
+    println!(
+        "pose       hip {} deg, knee {} deg, ankle {} deg (hip flexion +, knee flexion +, ankle dorsiflexion +; r = -dL/dq)",
+        angles[0], angles[1], angles[2]
+    );
+    println!(
+        "{:<11} {:>8} {:>8} {:>8} {:>6} {:>5} {:>8} {:>8} {:>8} {:>8}  source muscles",
+        "muscle", "F_max N", "l_opt m", "l_slk m", "pen deg", "slow", "L m", "r_hip mm", "r_knee", "r_ankle"
+    );
+    for m in muscles {
+        let r = m.moment_arm_m.map(|x| 1e3 * x);
+        println!(
+            "{:<11} {:>8.1} {:>8.4} {:>8.4} {:>6.1} {:>5.2} {:>8.4} {:>8.2} {:>8.2} {:>8.2}  {}{}",
+            m.name,
+            m.max_isometric_force_n,
+            m.optimal_fiber_length_m,
+            m.tendon_slack_length_m,
+            m.pennation_at_optimal_rad.to_degrees(),
+            m.slow_twitch_fraction,
+            m.length_m,
+            r[0],
+            r[1],
+            r[2],
+            m.source_names.join(" "),
+            if m.inside_table { "" } else { " (outside its table: extrapolated)" }
+        );
+    }
+}
+
+/// `exoleg run`'s switches.
+struct RunFlags {
+    quiet: bool,
+    animate: bool,
+    baseline: bool,
+}
+
 /// `exoleg run`.
-fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, quiet: bool, animate: bool) -> Result<i32> {
+fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, flags: RunFlags) -> Result<i32> {
+    let RunFlags { quiet, animate, baseline } = flags;
     let loaded = Scenario::load(scenario.as_deref(), &sets)?;
     loaded.own_controller()?;
-    let sc = loaded.resolve(&Resources::new())?;
+    let res = Resources::new();
+    let sc = loaded.resolve(&res)?;
     warn(&sc.warnings);
     if animate && sc.model.leg().is_none() {
         return Err(Error::input(&sc.source_name, "--animate", "the animation draws the leg: plant.kind = \"leg\""));
     }
-    let report = study::RunBuilder::new(&sc).animate(animate).write_to(&out)?;
+    let base = if baseline { Some(study::baseline_metabolics(&loaded, &res)?) } else { None };
+    let report = study::RunBuilder::new(&sc).animate(animate).baseline(base).write_to(&out)?;
     if !out.join("summary.json").is_file() {
         return Err(Error::Write { path: out.clone(), message: "the run's summary.json is not there".into() });
     }
@@ -862,8 +973,8 @@ fn absolute(p: PathBuf) -> PathBuf {
 fn absolute_paths(c: Command) -> Command {
     let opt = |p: Option<PathBuf>| p.map(absolute);
     match c {
-        Command::Run { scenario, out, sets, quiet, animate } => {
-            Command::Run { scenario: opt(scenario), out: absolute(out), sets, quiet, animate }
+        Command::Run { scenario, out, sets, quiet, animate, baseline } => {
+            Command::Run { scenario: opt(scenario), out: absolute(out), sets, quiet, animate, baseline }
         }
         Command::Sweep { scenario, grids, monte_carlo, vary, out, run_outputs, common } => Command::Sweep {
             scenario: absolute(scenario),
@@ -882,6 +993,9 @@ fn absolute_paths(c: Command) -> Command {
         }
         Command::Compare { scenario, plant, json, sets, firmware } => {
             Command::Compare { scenario: opt(scenario), plant, json: opt(json), sets, firmware }
+        }
+        Command::Muscles { scenario, pose, generic, json, sets } => {
+            Command::Muscles { scenario: opt(scenario), pose, generic, json, sets }
         }
         Command::Urdf { mass_kg, height_m, leg_length_m, sex, out } => {
             let out = if out.as_os_str() == "-" { out } else { absolute(out) };
@@ -934,7 +1048,10 @@ pub fn run(cli: Cli) -> Result<i32> {
     }
     let _armed = crate::control::plugin::exit_guard::arm();
     match absolute_paths(cli.command) {
-        Command::Run { scenario, out, sets, quiet, animate } => cmd_run(scenario, out, sets, quiet, animate),
+        Command::Run { scenario, out, sets, quiet, animate, baseline } => {
+            cmd_run(scenario, out, sets, RunFlags { quiet, animate, baseline })
+        }
+        Command::Muscles { scenario, pose, generic, json, sets } => cmd_muscles(scenario, &pose, generic, json, sets),
         Command::Sweep { scenario, grids, monte_carlo, vary, out, run_outputs, common } => {
             cmd_sweep(scenario, grids, monte_carlo, vary, out, run_outputs, common)
         }

@@ -86,6 +86,38 @@ pub struct Muscle {
     pub path: PathTable,
 }
 
+/// One muscle at a pose ([`MuscleSet::at_pose`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct MusclePose {
+    /// exoleg's name.
+    pub name: String,
+    /// The source model's muscles it stands for.
+    pub source_names: Vec<String>,
+    /// Maximum isometric force (N).
+    pub max_isometric_force_n: f64,
+    /// Optimal fibre length (m).
+    pub optimal_fiber_length_m: f64,
+    /// Tendon slack length (m).
+    pub tendon_slack_length_m: f64,
+    /// Pennation at the optimal fibre length (rad).
+    pub pennation_at_optimal_rad: f64,
+    /// Maximum contraction velocity (l_opt/s).
+    pub max_contraction_velocity_lopt_per_s: f64,
+    /// Slow-twitch fraction.
+    pub slow_twitch_fraction: f64,
+    /// Mass (kg), for the metabolic rate.
+    pub mass_kg: f64,
+    /// The joints it spans.
+    pub joints: Vec<String>,
+    /// Muscle-tendon length (m).
+    pub length_m: f64,
+    /// Moment arms about hip, knee, ankle (m; `r = -dL/dq`: a flexor's and a dorsiflexor's
+    /// positive).
+    pub moment_arm_m: [f64; 3],
+    /// The pose is inside the table's grid (else the length is extrapolated).
+    pub inside_table: bool,
+}
+
 /// A leg's muscles, scaled to a subject.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MuscleSet {
@@ -156,16 +188,50 @@ impl MuscleSet {
         out
     }
 
-    /// The scale factor for a leg with `thigh_m` and `shank_m` segments.
+    /// The scale factor for a leg with `thigh_m` and `shank_m` segments (a leg without an
+    /// ankle, `shank_m` 0: by the thigh alone).
     pub fn scale_for(&self, thigh_m: f64, shank_m: f64) -> f64 {
-        (thigh_m + shank_m) / (self.model_segments_m.0 + self.model_segments_m.1)
+        if shank_m > 0.0 {
+            (thigh_m + shank_m) / (self.model_segments_m.0 + self.model_segments_m.1)
+        } else {
+            thigh_m / self.model_segments_m.0
+        }
     }
 
     /// Muscle `i`'s length (m) and moment arms about hip, knee, ankle (m; `r = -dL/dq`,
     /// flexion and dorsiflexion positive) at `q_rad`.
     pub fn length_and_arms(&self, i: usize, q_rad: [f64; 3]) -> (f64, [f64; 3]) {
         let (l, d) = self.muscles[i].path.length_and_slope(q_rad);
-        (self.scale * l, d.map(|x| -self.scale * x))
+        // (+ 0.0: a joint the path does not span has a zero arm, not -0.)
+        (self.scale * l, d.map(|x| -self.scale * x + 0.0))
+    }
+
+    /// Every muscle at the joint angles `q_rad` (hip flexion, knee flexion, ankle
+    /// dorsiflexion): its parameters, length and moment arms (`exoleg muscles`).
+    pub fn at_pose(&self, q_rad: [f64; 3]) -> Vec<MusclePose> {
+        self.muscles
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let (l, r) = self.length_and_arms(i, q_rad);
+                let p = &m.params;
+                MusclePose {
+                    name: p.name.clone(),
+                    source_names: p.source_names.clone(),
+                    max_isometric_force_n: p.max_isometric_force_n,
+                    optimal_fiber_length_m: p.optimal_fiber_length_m,
+                    tendon_slack_length_m: p.tendon_slack_length_m,
+                    pennation_at_optimal_rad: p.pennation_at_optimal_rad,
+                    max_contraction_velocity_lopt_per_s: p.max_contraction_velocity_lopt_per_s,
+                    slow_twitch_fraction: p.slow_twitch_fraction,
+                    mass_kg: p.mass_kg(),
+                    joints: m.path.joints.iter().map(|&j| path::JOINTS[j].to_string()).collect(),
+                    length_m: l,
+                    moment_arm_m: r,
+                    inside_table: m.path.covers(q_rad),
+                }
+            })
+            .collect()
     }
 
     /// The index of the muscle named `name`.

@@ -591,6 +591,21 @@ pub mod fuzz {
         crate::reference::read_subjects("subjects.csv", text)?.into_iter().try_for_each(|r| r.row.map(|_| ()))
     }
 
+    /// A muscle table (`wearer.muscles_file`): parsed and validated, every muscle's length and
+    /// moment arms evaluated at poses inside, at the edges of and far outside its grid.
+    pub fn muscles(text: &str) -> Result<()> {
+        let set = crate::muscles::MuscleSet::parse(text, "muscles.toml")?;
+        for q in [[0.0, 0.0, 0.0], [1.2, 2.0, -0.6], [-40.0, 300.0, 9.0], [0.3, -0.17, 0.5]] {
+            for i in 0..set.muscles.len() {
+                let (l, r) = set.length_and_arms(i, q);
+                if !(l.is_finite() && r.iter().all(|x| x.is_finite())) {
+                    return Err(crate::error::Error::input("muscles.toml", "length_m", "a non-finite length"));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// `--set` flags, one per line, on the embedded default scenario, resolved.
     pub fn set_flags(text: &str) -> Result<()> {
         let sets: Vec<String> = text.lines().map(str::to_string).collect();
@@ -599,6 +614,6 @@ pub mod fuzz {
 }
 
 pub use fuzz::{
-    gait_csv as fuzz_gait_csv, scenario as fuzz_scenario, set_flags as fuzz_set_flags,
+    gait_csv as fuzz_gait_csv, muscles as fuzz_muscles, scenario as fuzz_scenario, set_flags as fuzz_set_flags,
     subjects_csv as fuzz_subjects_csv, urdf as fuzz_urdf,
 };

@@ -152,7 +152,19 @@ pub fn run_into_with(
     title: &str,
     extra: Option<&mut dyn RecordSink>,
 ) -> Result<RunReport> {
-    let mut files = RunFiles::create(dir, &sc.file.output)?.external(external_controller(&source));
+    run_into_compared(sc, source, dir, title, extra, None)
+}
+
+/// [`run_into_with`], its muscle figures compared with `baseline`'s.
+pub fn run_into_compared(
+    sc: &ResolvedScenario,
+    source: ControllerSource,
+    dir: &Path,
+    title: &str,
+    extra: Option<&mut dyn RecordSink>,
+    baseline: Option<crate::metrics::muscles::MetabolicsSummary>,
+) -> Result<RunReport> {
+    let mut files = RunFiles::create(dir, &sc.file.output)?.external(external_controller(&source)).baseline(baseline);
     let sim = Simulation::build(sc.model.clone(), source)?;
     let mut sinks: Vec<&mut dyn RecordSink> = vec![&mut files];
     if let Some(e) = extra {
@@ -162,6 +174,42 @@ pub fn run_into_with(
     files.finish(sc, title, summary, design)
 }
 
+/// The scenario `sc` without the device's help, as `exoleg run --baseline` runs it: the
+/// exoskeleton worn with its cylinder disconnected (`actuator.mode = "free"`), an ideal device
+/// giving no moment; every other key as it is.
+pub fn baseline_scenario(sc: &crate::scenario::Scenario) -> crate::scenario::Scenario {
+    let mut b = sc.clone();
+    b.file.actuator.mode = crate::hydraulics::ActuatorMode::Free;
+    if b.file.controller.kind == crate::control::ControllerKind::IdealMoment {
+        b.file.controller.ideal.max_nm_per_kg = 0.0;
+    }
+    b
+}
+
+/// What the wearer's muscles cost in `sc`'s baseline ([`baseline_scenario`]), run in memory.
+/// Errors when the scenario has no muscle analysis (`wearer.muscles = true` is needed).
+pub fn baseline_metabolics(
+    sc: &crate::scenario::Scenario,
+    res: &crate::scenario::Resources,
+) -> Result<crate::metrics::muscles::MetabolicsSummary> {
+    if !sc.file.wearer.muscles {
+        return Err(Error::input(
+            &sc.source_name,
+            "--baseline",
+            "compares what the muscles cost: set wearer.muscles = true",
+        ));
+    }
+    let b = baseline_scenario(sc).resolve(res)?;
+    let summary = crate::session::run(&b.model, &mut crate::record::NullSink)?;
+    summary.wearer.and_then(|w| w.metabolics).ok_or_else(|| {
+        Error::input(
+            &sc.source_name,
+            "--baseline",
+            "the baseline run has no muscle figures (no samples after metrics.settle_s)",
+        )
+    })
+}
+
 /// The files of one run as they are written: `timeseries.csv` streamed, the plots' rows kept
 /// (bounded); [`RunFiles::finish`] adds `summary.json` and the plots. A [`RecordSink`].
 pub struct RunFiles {
@@ -169,6 +217,7 @@ pub struct RunFiles {
     csv: crate::record::EveryNth<crate::output::TimeSeriesSink>,
     plots: PlotBuffer,
     external: Option<String>,
+    baseline: Option<crate::metrics::muscles::MetabolicsSummary>,
 }
 
 impl RunFiles {
@@ -181,6 +230,7 @@ impl RunFiles {
             csv: crate::record::EveryNth::new(crate::output::TimeSeriesSink::create(dir, parquet)?, output.every_steps),
             plots: PlotBuffer::new(),
             external: None,
+            baseline: None,
         })
     }
 
@@ -190,15 +240,24 @@ impl RunFiles {
         self
     }
 
+    /// Compare the run's muscle figures with `baseline`'s (`exoleg run --baseline`).
+    pub fn baseline(mut self, baseline: Option<crate::metrics::muscles::MetabolicsSummary>) -> Self {
+        self.baseline = baseline;
+        self
+    }
+
     /// Close `timeseries.csv`, write `summary.json` (figures, criteria, inputs, the scenario)
     /// and the plots titled `title`.
     pub fn finish(
         self,
         sc: &ResolvedScenario,
         title: &str,
-        summary: Summary,
+        mut summary: Summary,
         design: Option<serde_json::Value>,
     ) -> Result<RunReport> {
+        if let (Some(b), Some(m)) = (&self.baseline, summary.wearer.as_mut().and_then(|w| w.metabolics.as_mut())) {
+            m.against(b);
+        }
         self.csv.into_inner().finish()?;
         let criteria = check_criteria(&sc.file.criteria, &summary);
         let file = SummaryFile::new(sc, &summary, &criteria, design).external(self.external.clone());
@@ -264,17 +323,25 @@ pub struct RunBuilder<'a> {
     sc: &'a ResolvedScenario,
     source: ControllerSource,
     animate: bool,
+    baseline: Option<crate::metrics::muscles::MetabolicsSummary>,
 }
 
 impl<'a> RunBuilder<'a> {
     /// A run of `sc` with its own controller until [`Self::controller`] says otherwise.
     pub fn new(sc: &'a ResolvedScenario) -> Self {
-        Self { sc, source: ControllerSource::Model, animate: false }
+        Self { sc, source: ControllerSource::Model, animate: false, baseline: None }
     }
 
     /// Put the caller's sampled controller in the loop (`controller.sample_period_s` > 0).
     pub fn controller(mut self, ctrl: Box<dyn DiscreteController>) -> Self {
         self.source = ControllerSource::Discrete(ctrl);
+        self
+    }
+
+    /// Compare the run's muscle figures with a baseline's ([`baseline_metabolics`]):
+    /// `summary.json` `wearer.metabolics.change_pct` and the effort's change.
+    pub fn baseline(mut self, b: Option<crate::metrics::muscles::MetabolicsSummary>) -> Self {
+        self.baseline = b;
         self
     }
 
@@ -291,11 +358,11 @@ impl<'a> RunBuilder<'a> {
         let title = run_title(self.sc);
         let report = if self.animate && self.sc.model.leg().is_some() {
             let mut anim = crate::output::animate::Animation::new(self.sc.model.steps, self.sc.model.dt_s);
-            let r = run_into_with(self.sc, self.source, dir.path(), &title, Some(&mut anim))?;
+            let r = run_into_compared(self.sc, self.source, dir.path(), &title, Some(&mut anim), self.baseline)?;
             write_animation(self.sc, &anim, &dir.path().join("leg_motion.gif"))?;
             r
         } else {
-            run_into_with(self.sc, self.source, dir.path(), &title, None)?
+            run_into_compared(self.sc, self.source, dir.path(), &title, None, self.baseline)?
         };
         dir.commit()?;
         Ok(report)

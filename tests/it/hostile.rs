@@ -76,6 +76,11 @@ fn scenario_corpus() {
 }
 
 #[test]
+fn muscles_corpus() {
+    replay("muscles", exoleg::scenario::fuzz_muscles);
+}
+
+#[test]
 fn urdf_corpus() {
     replay("urdf", exoleg::scenario::fuzz_urdf);
 }

@@ -26,6 +26,7 @@ mod leg_passive;
 mod leg_reduced;
 mod leg_statics;
 mod leg_urdf_errors;
+mod muscles;
 mod observer;
 mod output_safety;
 mod paper_tables;
