@@ -144,11 +144,12 @@ pub fn run_with_callback(
     sc: &ResolvedScenario,
     controller: PyObject,
     out: Option<&str>,
+    baseline: Option<crate::stepwise::MetabolicsSummary>,
 ) -> PyResult<(String, ColumnSink)> {
     let error = Arc::new(Mutex::new(None));
     let ctrl = PyController::new(py, controller, error.clone())?;
     let sim = Simulation::build(sc.model.clone(), ControllerSource::Discrete(Box::new(ctrl))).map_err(py_err)?;
-    let r = crate::stepwise::drive(py, sc, sim, out, |session| {
+    let r = crate::stepwise::drive(py, sc, sim, out, baseline, |session| {
         while !session.sim().done() {
             session.step()?;
             if session.sim().steps_taken() % SIGNAL_CHECK_STEPS == 0 && py.check_signals().is_err() {

@@ -179,7 +179,8 @@ pub(crate) type RunOut<'py> = (String, Bound<'py, PyDict>, String);
 /// callable called once per sample period). With `out`, also write the outputs as `exoleg
 /// run --out` does.
 #[pyfunction]
-#[pyo3(signature = (path=None, toml_text=None, scenario_json=None, overrides_json=None, controller=None, out=None))]
+#[pyo3(signature = (path=None, toml_text=None, scenario_json=None, overrides_json=None, controller=None, out=None, baseline=false))]
+#[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
     path: Option<String>,
@@ -188,23 +189,26 @@ fn run<'py>(
     overrides_json: Option<String>,
     controller: Option<PyObject>,
     out: Option<String>,
+    baseline: bool,
 ) -> PyResult<RunOut<'py>> {
     let own = controller.is_none();
-    let sc = py
+    let (sc, base) = py
         .allow_threads(|| {
             let s = load(path, toml_text, scenario_json, overrides_json)?;
             if own {
                 s.own_controller()?;
             }
-            s.resolve(&Resources::new())
+            let res = Resources::new();
+            let base = if baseline { Some(exoleg::study::baseline_metabolics(&s, &res)?) } else { None };
+            Ok::<_, exoleg::Error>((s.resolve(&res)?, base))
         })
         .map_err(py_err)?;
     let scenario_toml = toml::to_string(&sc.file).map_err(|e| ExoError::new_err(e.to_string()))?;
     let (summary, cols) = match controller {
-        Some(c) => guard(|| controller::run_with_callback(py, &sc, c, out.as_deref()))?,
+        Some(c) => guard(|| controller::run_with_callback(py, &sc, c, out.as_deref(), base))?,
         None => {
             let cancel = Arc::new(AtomicBool::new(false));
-            interruptible(py, &cancel, || stepwise::run_model(&sc, out.as_deref(), Some(cancel.clone())))?
+            interruptible(py, &cancel, || stepwise::run_model(&sc, out.as_deref(), Some(cancel.clone()), base))?
         }
     };
     Ok((summary, cols.into_dict(py)?, scenario_toml))

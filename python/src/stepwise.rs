@@ -38,7 +38,12 @@ struct Started {
     dir: Option<OutputDir>,
     /// The controller from outside the scenario (`summary.json`'s `external_controller`).
     external: Option<String>,
+    /// The baseline's muscle figures (`exoleg.run(..., baseline=True)`).
+    baseline: Option<MetabolicsSummary>,
 }
+
+/// A run's baseline muscle figures (`exoleg.run(..., baseline=True)`).
+pub type MetabolicsSummary = exoleg::metrics::muscles::MetabolicsSummary;
 
 /// Start a session of `sim` into columns and (with `out`) an output folder being written.
 fn start(
@@ -46,22 +51,28 @@ fn start(
     sim: CoreSimulation,
     out: Option<&str>,
     external: Option<String>,
+    baseline: Option<MetabolicsSummary>,
 ) -> Result<Started, Error> {
     let dir =
         out.map(|o| OutputDir::prepare_with_inputs(std::path::Path::new(o), "out", &sc.input_paths())).transpose()?;
     let every = sc.file.output.every_steps;
     let files = dir
         .as_ref()
-        .map(|d| RunFiles::create(d.path(), &sc.file.output).map(|f| f.external(external.clone())))
+        .map(|d| {
+            RunFiles::create(d.path(), &sc.file.output).map(|f| f.external(external.clone()).baseline(baseline.clone()))
+        })
         .transpose()?;
     let cols = exoleg::record::EveryNth::new(ColumnSink::with_capacity(sc.model.steps / every.max(1) + 1), every);
     let sinks = PySinks { cols, files };
-    Ok(Started { session: Session::new(sim, sinks)?, dir, external })
+    Ok(Started { session: Session::new(sim, sinks)?, dir, external, baseline })
 }
 
 /// Finish a session: the summary as `summary.json` holds it, and the files committed.
 fn finish(sc: &ResolvedScenario, st: Started) -> Result<(String, ColumnSink), Error> {
-    let f = st.session.finish()?;
+    let mut f = st.session.finish()?;
+    if let (Some(b), Some(m)) = (&st.baseline, f.summary.wearer.as_mut().and_then(|w| w.metabolics.as_mut())) {
+        m.against(b);
+    }
     let mut sinks = f.sink;
     let summary_json = match (sinks.files.take(), st.dir) {
         (Some(files), Some(dir)) => {
@@ -93,9 +104,10 @@ pub fn drive(
     sc: &ResolvedScenario,
     sim: CoreSimulation,
     out: Option<&str>,
+    baseline: Option<MetabolicsSummary>,
     body: impl FnOnce(&mut Session<PySinks>) -> Result<(), Error>,
 ) -> Result<(String, ColumnSink), Error> {
-    let mut st = start(sc, sim, out, Some("python".into()))?;
+    let mut st = start(sc, sim, out, Some("python".into()), baseline)?;
     body(&mut st.session)?;
     finish(sc, st)
 }
@@ -105,8 +117,9 @@ pub fn run_model(
     sc: &ResolvedScenario,
     out: Option<&str>,
     cancel: Option<Arc<AtomicBool>>,
+    baseline: Option<MetabolicsSummary>,
 ) -> Result<(String, ColumnSink), Error> {
-    let mut st = start(sc, CoreSimulation::new(sc.model.clone())?, out, None)?;
+    let mut st = start(sc, CoreSimulation::new(sc.model.clone())?, out, None, baseline)?;
     st.session.set_cancel(cancel);
     st.session.run_to_end()?;
     finish(sc, st)
@@ -300,7 +313,7 @@ impl Simulation {
         }
         let sim = CoreSimulation::build(self.sc.model.clone(), ControllerSource::External).map_err(py_err)?;
         let external = Some("external loop (exoleg.Simulation)".to_string());
-        self.run = Some(start(&self.sc, sim, self.out.as_deref(), external).map_err(py_err)?);
+        self.run = Some(start(&self.sc, sim, self.out.as_deref(), external, None).map_err(py_err)?);
         self.read(py)
     }
 

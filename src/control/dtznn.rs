@@ -305,6 +305,7 @@ impl Ahead {
     /// Into `out`: the state d samples after `x` (the delayed estimate) with velocity `v`
     /// ramped at `slope`, `Phi^d x + S_u + A w + B (G0 slope h)` with `w = G0 v + G1 slope`,
     /// summed left to right.
+    #[allow(clippy::too_many_arguments)]
     fn predict_into(
         &self,
         m: &SampledModel,

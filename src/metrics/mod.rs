@@ -277,11 +277,15 @@ pub enum Metric {
     ValveSaturationFraction,
     /// [`Summary::peak_cylinder_force_n`].
     PeakCylinderForce,
+    /// The wearer's gross metabolic rate (W/kg, `wearer.metabolics.gross_w_per_kg`).
+    MetabolicGross,
+    /// The wearer's muscle effort (`wearer.metabolics.effort`).
+    MuscleEffort,
 }
 
 impl Metric {
     /// The metrics aggregated over a sweep, in `aggregate.csv` order.
-    pub const AGGREGATED: [Metric; 8] = [
+    pub const AGGREGATED: [Metric; 10] = [
         Metric::MaxAbsForceError,
         Metric::RmsForceError,
         Metric::MaxAbsForceErrorAfterSettle,
@@ -290,6 +294,8 @@ impl Metric {
         Metric::KneeMaxAbsError,
         Metric::ValveSaturationFraction,
         Metric::PeakCylinderForce,
+        Metric::MetabolicGross,
+        Metric::MuscleEffort,
     ];
 
     /// The `summary.json` key.
@@ -303,6 +309,8 @@ impl Metric {
             Metric::KneeMaxAbsError => "knee_max_abs_error_deg",
             Metric::ValveSaturationFraction => "valve_saturation_fraction",
             Metric::PeakCylinderForce => "peak_cylinder_force_n",
+            Metric::MetabolicGross => "metabolic_gross_w_per_kg",
+            Metric::MuscleEffort => "muscle_effort",
         }
     }
 
@@ -321,6 +329,8 @@ impl Metric {
             Metric::KneeMaxAbsError => s.knee_max_abs_error_deg,
             Metric::ValveSaturationFraction => Some(s.valve_saturation_fraction),
             Metric::PeakCylinderForce => Some(s.peak_cylinder_force_n),
+            Metric::MetabolicGross => s.wearer.as_ref()?.metabolics.as_ref().map(|m| m.gross_w_per_kg),
+            Metric::MuscleEffort => s.wearer.as_ref()?.metabolics.as_ref().map(|m| m.effort),
         }
     }
 }

@@ -247,6 +247,7 @@ impl Analysis {
     /// (the squared-activation optimum): each step's quadratic has the rate's slope and its
     /// curvature (floored to stay convex), a step is kept when the true objective (the rates
     /// and the reserves at 100 W per (rho N m)^2) falls. Returns the reserves.
+    #[allow(clippy::needless_range_loop)] // per muscle, several vectors
     fn metabolic_descent(&mut self, b: [f64; 3]) -> [f64; 3] {
         let n = self.act.len();
         let rho = self.setup.reserve_nm / 10.0;

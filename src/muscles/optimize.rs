@@ -136,6 +136,7 @@ impl Problem<'_> {
 impl Solver {
     /// Solve `p` in place: `x` holds a start on entry (clipped into the box) and the optimum on
     /// return.
+    #[allow(clippy::needless_range_loop)] // per variable, its state, its candidate and its column
     pub fn solve(&mut self, p: &Problem, x: &mut [f64]) -> Outcome {
         let n = x.len();
         if self.state.len() != n {

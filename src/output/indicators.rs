@@ -48,6 +48,20 @@ pub fn indicators(s: &Summary) -> Vec<(String, f64)> {
         put("heel_strike_latency_median_s", p.median_latency_s);
         put("gait_phase_rmse_pct", p.phase_rmse_pct);
     }
+    if let Some(m) = &w.metabolics {
+        put("metabolic_rate_gross_w_per_kg", Some(m.gross_w_per_kg));
+        put("metabolic_rate_net_w_per_kg", Some(m.net_w_per_kg));
+        put("metabolic_energy_per_stride_j", m.gross_j_per_stride);
+        put("muscle_effort", Some(m.effort));
+        put("metabolic_rate_change_pct", m.change_pct);
+        put("muscle_effort_change_pct", m.effort_change_pct);
+        for (joint, r) in ["hip", "knee", "ankle"].iter().zip(m.peak_reserve_pct) {
+            put(&format!("peak_reserve_{joint}_pct"), Some(r));
+        }
+        for (muscle, w) in &m.per_muscle_w {
+            put(&format!("muscle_{muscle}_metabolic_w"), Some(*w));
+        }
+    }
     out
 }
 

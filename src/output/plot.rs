@@ -213,53 +213,137 @@ pub fn panels_png(
     panels: &[Panel],
     shade: &[(f64, f64)],
 ) -> Result<()> {
-    let t_span = x_span;
+    panels_with_lanes_png(path, title, x_label, x_span, panels, shade, None)
+}
+
+/// Lanes of a panel drawn below the others: one per row, a value in 0..1 drawn in its lane
+/// over the x span, with the x windows marked where it is expected on (`wearer.png`'s muscle
+/// activations against normative EMG).
+pub struct Lanes<'a> {
+    /// Y-axis label.
+    pub y_label: &'a str,
+    /// Per lane: its name, its values at x = 0.5, 1.5, ... (0..1), its expected-on windows.
+    pub rows: Vec<Lane<'a>>,
+}
+
+/// One lane of [`Lanes`]: name, values, expected-on x windows.
+pub type Lane<'a> = (&'a str, Vec<f64>, Vec<(f64, f64)>);
+
+/// [`panels_png`] with [`Lanes`] as a last, taller panel.
+fn panels_with_lanes_png(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    x_span: (f64, f64),
+    panels: &[Panel],
+    shade: &[(f64, f64)],
+    lanes: Option<&Lanes>,
+) -> Result<()> {
     ensure_font();
-    let (w, h) = (1200u32, 300 * panels.len() as u32 + 60);
+    let lanes_h = lanes.map_or(0, |l| 40 * l.rows.len() as u32 + 80);
+    let (w, h) = (1200u32, 300 * panels.len() as u32 + 60 + lanes_h);
     let mut buf = vec![0u8; (w * h * 3) as usize];
     let perr = |e: String| Error::Write { path: path.to_path_buf(), message: format!("plot: {e}") };
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| perr(e.to_string()))?;
         let root = root.titled(title, ("sans-serif", 22)).map_err(|e| perr(e.to_string()))?;
-        let areas = root.split_evenly((panels.len(), 1));
-        let (t0, t1) = (t_span.0, t_span.1.max(t_span.0 + 1e-9));
+        let (top, bottom) = root.split_vertically(h - 60 - lanes_h + 30);
+        let areas = top.split_evenly((panels.len(), 1));
+        let (t0, t1) = (x_span.0, x_span.1.max(x_span.0 + 1e-9));
         for (area, p) in areas.iter().zip(panels) {
-            let (lo, hi) = range(p);
-            let mut chart = ChartBuilder::on(area)
-                .margin(8)
-                .x_label_area_size(36)
-                .y_label_area_size(80)
-                .build_cartesian_2d(t0..t1, lo..hi)
-                .map_err(|e| perr(e.to_string()))?;
-            chart
-                .configure_mesh()
-                .x_desc(x_label)
-                .y_desc(p.y_label)
-                .label_style(("sans-serif", 14))
-                .draw()
-                .map_err(|e| perr(e.to_string()))?;
-            chart
-                .draw_series(
-                    shade
-                        .iter()
-                        .map(|&(a, b)| Rectangle::new([(a, lo), (b, hi)], RGBColor(200, 200, 200).mix(0.4).filled())),
-                )
-                .map_err(|e| perr(e.to_string()))?;
-            for (name, v, c) in &p.series {
-                let c = *c;
-                chart
-                    .draw_series(LineSeries::new(v.iter().copied(), c.stroke_width(2)))
-                    .map_err(|e| perr(e.to_string()))?
-                    .label(*name)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
-            }
-            draw_legend(&mut chart).map_err(perr)?;
+            draw_panel(area, p, (t0, t1), x_label, shade).map_err(perr)?;
+        }
+        if let Some(l) = lanes {
+            draw_lanes(&bottom, l, (t0, t1), x_label).map_err(perr)?;
         }
         root.present().map_err(|e| perr(e.to_string()))?;
     }
     let img = image_png(&buf, w, h).map_err(perr)?;
     write_atomic(path, &img)
+}
+
+/// One panel of lines over `t` with the shaded x spans.
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    p: &Panel,
+    (t0, t1): (f64, f64),
+    x_label: &str,
+    shade: &[(f64, f64)],
+) -> std::result::Result<(), String> {
+    let (lo, hi) = range(p);
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .x_label_area_size(36)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t0..t1, lo..hi)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(p.y_label)
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    chart
+        .draw_series(
+            shade.iter().map(|&(a, b)| Rectangle::new([(a, lo), (b, hi)], RGBColor(200, 200, 200).mix(0.4).filled())),
+        )
+        .map_err(|e| e.to_string())?;
+    for (name, v, c) in &p.series {
+        let c = *c;
+        chart
+            .draw_series(LineSeries::new(v.iter().copied(), c.stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+    }
+    draw_legend(&mut chart)
+}
+
+/// The lanes panel: lane i spans i..i+1 on the y axis, its windows shaded, its values drawn
+/// at i + 0.05 + 0.9 v.
+fn draw_lanes<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    l: &Lanes,
+    (t0, t1): (f64, f64),
+    x_label: &str,
+) -> std::result::Result<(), String> {
+    let n = l.rows.len().max(1);
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .x_label_area_size(36)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t0..t1, 0.0..n as f64)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(l.y_label)
+        .y_labels(n + 1)
+        .y_label_formatter(&|_| String::new())
+        .label_style(("sans-serif", 13))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (i, (name, values, windows)) in l.rows.iter().enumerate() {
+        let y0 = i as f64;
+        let at = (t0 + 0.005 * (t1 - t0), y0 + 0.95);
+        chart
+            .draw_series(std::iter::once(Text::new(name.to_string(), at, ("sans-serif", 14))))
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(windows.iter().map(|&(a, b)| {
+                Rectangle::new([(a, y0 + 0.03), (b, y0 + 0.97)], RGBColor(180, 180, 180).mix(0.5).filled())
+            }))
+            .map_err(|e| e.to_string())?;
+        let pts = values
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.is_finite())
+            .map(|(k, v)| (k as f64 + 0.5, y0 + 0.05 + 0.9 * v.clamp(0.0, 1.0)));
+        chart.draw_series(LineSeries::new(pts, BLUE.stroke_width(2))).map_err(|e| e.to_string())?;
+    }
+    Ok(())
 }
 
 /// The legend box every panel uses.
@@ -330,11 +414,32 @@ pub fn knee_tracking_png(path: &Path, b: &PlotBuffer, title: &str) -> Result<()>
 /// What the wearer got over the mean cycle: the device's knee moment against the
 /// biological one, the cuff forces with the comfort limit, the knee angle; the data's stance
 /// (0-62 %) shaded.
-pub fn wearer_png(path: &Path, c: &crate::metrics::wearer::WearerCycle, comfort_n: f64, title: &str) -> Result<()> {
+pub fn wearer_png(
+    path: &Path,
+    c: &crate::metrics::wearer::WearerCycle,
+    muscles: Option<&crate::metrics::muscles::MuscleCycle>,
+    comfort_n: f64,
+    title: &str,
+) -> Result<()> {
     let pts = |v: &[f64]| v.iter().enumerate().map(|(i, x)| (i as f64 + 0.5, *x)).collect::<Vec<_>>();
     let flat = |x: f64| vec![(0.0, x), (100.0, x)];
     let grey = RGBColor(128, 128, 128);
-    panels_png(
+    let lanes = muscles.map(|m| Lanes {
+        y_label: "activation (0..1; grey: Perry 1992 EMG on)",
+        rows: m
+            .names
+            .iter()
+            .zip(&m.activation)
+            .map(|(n, a)| {
+                let windows = crate::metrics::muscles::EMG_ON_WINDOWS
+                    .iter()
+                    .find(|(w, _)| w == n)
+                    .map_or(Vec::new(), |(_, w)| w.to_vec());
+                (n.as_str(), a.clone(), windows)
+            })
+            .collect(),
+    });
+    panels_with_lanes_png(
         path,
         title,
         "gait cycle (%, the data's clock)",
@@ -369,6 +474,7 @@ pub fn wearer_png(path: &Path, c: &crate::metrics::wearer::WearerCycle, comfort_
             Panel { y_label: "knee flexion (deg)", series: vec![("knee", pts(&c.knee_deg), BLUE)] },
         ],
         &[(0.0, 62.0)],
+        lanes.as_ref(),
     )
 }
 

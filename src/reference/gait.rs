@@ -186,7 +186,7 @@ fn with_harmonics<R>(theta: f64, n: usize, f: impl FnOnce(&[f64], &[f64]) -> R) 
 /// instructions, several times per step on the gait path): `x - 100 trunc(x / 100)` is exact
 /// when the quotient is right, and the remainder's sign and size say when it is not.
 pub fn rem_euclid_100(x: f64) -> f64 {
-    if !(x.abs() < 1e15) {
+    if !x.is_finite() || x.abs() >= 1e15 {
         return x.rem_euclid(100.0);
     }
     let q = (x / 100.0).trunc();

@@ -267,8 +267,17 @@ impl RunFiles {
             knee_tracking_png(&self.dir.join("knee_tracking.png"), &self.plots, title)?;
         }
         crate::output::indicators::write_indicators(&self.dir, &summary)?;
-        if let Some(c) = summary.wearer.as_ref().and_then(|w| w.cycle.as_ref()) {
-            crate::output::wearer_png(&self.dir.join("wearer.png"), c, sc.file.cuff_limits.comfort_n, title)?;
+        if let Some(w) = summary.wearer.as_ref() {
+            if let Some(c) = w.cycle.as_ref() {
+                let muscles = w.metabolics.as_ref().and_then(|m| m.cycle.as_ref());
+                crate::output::wearer_png(
+                    &self.dir.join("wearer.png"),
+                    c,
+                    muscles,
+                    sc.file.cuff_limits.comfort_n,
+                    title,
+                )?;
+            }
         }
         Ok(RunReport { summary, criteria })
     }

@@ -180,6 +180,7 @@ def run(
     *,
     controller: Optional[Controller] = None,
     out: Optional[Union[str, os.PathLike]] = None,
+    baseline: bool = False,
 ) -> Run:
     """Run one scenario headless and return its figures and time series.
 
@@ -190,14 +191,17 @@ def run(
     period (``controller.sample_period_s`` > 0) with the readings (an :class:`Obs`, reused:
     keep its numbers, not the object); it returns the valve command, or a dict with
     ``valve_command`` and logged channels (columns ``log_<name>``). ``out``: also write the
-    outputs of ``exoleg run`` there (whole, or not at all).
+    outputs of ``exoleg run`` there (whole, or not at all). ``baseline``: also run the scenario
+    without the device's help (its cylinder disconnected; an ideal device gives no moment) and
+    compare what the wearer's muscles cost (``summary["wearer"]["metabolics"]["change_pct"]``;
+    needs ``wearer.muscles = true``), as ``exoleg run --baseline``.
 
     Raises ``ScenarioError`` (a ``ValueError``) for bad input, with the CLI's one-line message;
     ``DivergedError`` when the run diverges or its controller stops it; ``ControllerError``
     when the controller raises (its exception is the cause) or returns no usable command.
     """
     o = None if out is None else _out(out)
-    return _run(_native.run(**_args(scenario, overrides), controller=controller, out=o))
+    return _run(_native.run(**_args(scenario, overrides), controller=controller, out=o, baseline=bool(baseline)))
 
 
 def controller_info(scenario: ScenarioLike = None, overrides: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:

@@ -29,7 +29,14 @@ class Study:
     out: str
     def runs(self) -> List[Dict[str, Any]]: ...
 
-def run(scenario: ScenarioLike = ..., overrides: Optional[Mapping[str, Any]] = ...) -> Run: ...
+def run(
+    scenario: ScenarioLike = ...,
+    overrides: Optional[Mapping[str, Any]] = ...,
+    *,
+    controller: Optional[Callable[..., Any]] = ...,
+    out: Optional[Union[str, os.PathLike[str]]] = ...,
+    baseline: bool = ...,
+) -> Run: ...
 def sweep(
     scenario: ScenarioLike,
     *,

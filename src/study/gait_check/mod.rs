@@ -160,6 +160,8 @@ pub struct Figures {
     pub dataset: DatasetComparison,
     /// The curves of its figure.
     pub curves: Curves,
+    /// What the wearer's muscles cost (`--set wearer.muscles=true`).
+    pub metabolics: Option<crate::metrics::muscles::MetabolicsSummary>,
 }
 
 impl Figures {
@@ -406,7 +408,10 @@ fn run_trial(t: &Trial, base: &Scenario, opts: &CheckOptions, res: &Resources) -
         Err(e) => Outcome::Failed(e.to_string()),
         Ok(summary) => match (summary.contact, curves(&sc, &sink.bins, row.stride_s)) {
             (Some(contact), Some(curves)) => match contact.dataset.clone() {
-                Some(dataset) => Outcome::Ran(Box::new(Figures { contact, dataset, curves })),
+                Some(dataset) => {
+                    let metabolics = summary.wearer.and_then(|w| w.metabolics);
+                    Outcome::Ran(Box::new(Figures { contact, dataset, curves, metabolics }))
+                }
                 None => Outcome::Failed("no stride to compare with the data".into()),
             },
             _ => Outcome::Failed("the run has no ground contact to compare with the data".into()),

@@ -6,7 +6,7 @@ use crate::reference::StrideSource;
 use std::fmt::Write;
 
 /// The columns of `gait_check.csv`, in order.
-pub const CSV_COLUMNS: [&str; 27] = [
+pub const CSV_COLUMNS: [&str; 32] = [
     "folder",
     "trial",
     "subject",
@@ -34,7 +34,15 @@ pub const CSV_COLUMNS: [&str; 27] = [
     "not_walking",
     "misses",
     "message",
+    "gross_w_per_kg",
+    "net_w_per_kg",
+    "peak_reserve_hip_pct",
+    "peak_reserve_knee_pct",
+    "peak_reserve_ankle_pct",
 ];
+
+/// The muscle analysis's columns, last (empty without `wearer.muscles`).
+const METABOLIC_COLUMNS: usize = 5;
 
 /// A CSV field: quoted when it holds a comma, a quote or a line break.
 fn field(s: &str) -> String {
@@ -104,12 +112,22 @@ impl Report {
                     cells.push("ran".into());
                     cells.extend(self.figure_cells(f));
                     cells.push(String::new());
+                    match &f.metabolics {
+                        Some(m) => cells.extend(
+                            [m.gross_w_per_kg, m.net_w_per_kg]
+                                .into_iter()
+                                .chain(m.peak_reserve_pct)
+                                .map(|v| format!("{v}")),
+                        ),
+                        None => cells.extend(std::iter::repeat_n(String::new(), METABOLIC_COLUMNS)),
+                    }
                 }
                 Outcome::BadInput(m) | Outcome::Failed(m) => {
                     let what = if matches!(t.outcome, Outcome::BadInput(_)) { "bad_input" } else { "failed" };
                     cells.push(what.into());
-                    cells.extend(std::iter::repeat_n(String::new(), CSV_COLUMNS.len() - 8));
+                    cells.extend(std::iter::repeat_n(String::new(), CSV_COLUMNS.len() - 8 - METABOLIC_COLUMNS));
                     cells.push(field(m));
+                    cells.extend(std::iter::repeat_n(String::new(), METABOLIC_COLUMNS));
                 }
             }
             s.push_str(&cells.join(","));
@@ -176,7 +194,10 @@ impl Report {
             check(f.flexor_size_ok(tg)),
             c.knee_rms_error_stance_deg.unwrap_or(f64::NAN),
             if misses.is_empty() { "meets".to_string() } else { format!("MISSES: {}", misses.join("; ")) }
-        )
+        ) + &f.metabolics.as_ref().map_or(String::new(), |m| {
+            let r = m.peak_reserve_pct;
+            format!("  {:.2} W/kg gross, reserves {:.1}/{:.1}/{:.1} %", m.gross_w_per_kg, r[0], r[1], r[2])
+        })
     }
 
     /// The printed report: per folder and age group, every trial's line and the group's count.
@@ -243,6 +264,35 @@ impl Report {
             self.bad_input().len(),
             self.wall_s
         );
+        if let Some(line) = self.metabolics_line() {
+            let _ = writeln!(s, "{line}");
+        }
         s
+    }
+
+    /// The muscle analysis over the trials that ran with it: the gross rate's mean and range,
+    /// the largest peak reserve.
+    fn metabolics_line(&self) -> Option<String> {
+        let ms: Vec<&crate::metrics::muscles::MetabolicsSummary> = self
+            .trials
+            .iter()
+            .filter_map(|t| match &t.outcome {
+                Outcome::Ran(f) => f.metabolics.as_ref(),
+                _ => None,
+            })
+            .collect();
+        let first = ms.first()?;
+        let g: Vec<f64> = ms.iter().map(|m| m.gross_w_per_kg).collect();
+        let mean = g.iter().sum::<f64>() / g.len() as f64;
+        let (lo, hi) = g.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        let worst = ms.iter().flat_map(|m| m.peak_reserve_pct).fold(0.0, f64::max);
+        Some(format!(
+            "Metabolic rate ({}, {} muscles, {}): gross {mean:.2} W/kg on average over {} trials ({lo:.2}..{hi:.2}), net {:.2}; the largest peak reserve {worst:.1} % of a joint's moment",
+            first.metabolic_model,
+            first.muscle_model,
+            first.muscle_cost,
+            g.len(),
+            mean - first.basal_w_per_kg
+        ))
     }
 }
