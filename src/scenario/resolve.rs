@@ -710,20 +710,22 @@ impl Scenario {
         crate::scenario::resolve_faults(&f.faults, &fcx).map_err(|(k, m)| Error::input(&self.source_name, k, m))
     }
 
-    /// Resolve this validated scenario with shared inputs from `res`. Every input error
-    /// (files, leg, gait, cuff) is reported here.
-    pub fn resolve(&self, res: &Resources) -> Result<ResolvedScenario> {
+    /// The scenario resolved in its normal form when it is not in it: the subject's mass moved
+    /// into `hip.subject_mass_kg` (recorded as written), an ideal device's cylinder
+    /// disconnected. None: it is.
+    fn resolve_normalised(&self, res: &Resources) -> Option<Result<ResolvedScenario>> {
         if let Some(m) =
             self.file.subject.as_ref().map(|s| s.mass_kg).filter(|_| self.file.hip.subject_mass_kg.is_none())
         {
             // The subject's mass is the hip's (kinetics, carried weight), in one place.
             let mut with_mass = self.clone();
             with_mass.file.hip.subject_mass_kg = Some(m);
-            let mut resolved = with_mass.resolve(res)?;
-            // Recorded as written: the mass once, in [subject] (a sweep of subject.mass_kg on a
-            // reproduced run is not a contradiction).
-            resolved.file.hip.subject_mass_kg = None;
-            return Ok(resolved);
+            return Some(with_mass.resolve(res).map(|mut resolved| {
+                // Recorded as written: the mass once, in [subject] (a sweep of subject.mass_kg
+                // on a reproduced run is not a contradiction).
+                resolved.file.hip.subject_mass_kg = None;
+                resolved
+            }));
         }
         if self.file.controller.kind == ControllerKind::IdealMoment
             && self.file.actuator.mode != crate::hydraulics::ActuatorMode::Free
@@ -731,7 +733,16 @@ impl Scenario {
             // The ideal device's cylinder is disconnected (recorded so).
             let mut free = self.clone();
             free.file.actuator.mode = crate::hydraulics::ActuatorMode::Free;
-            return free.resolve(res);
+            return Some(free.resolve(res));
+        }
+        None
+    }
+
+    /// Resolve this validated scenario with shared inputs from `res`. Every input error
+    /// (files, leg, gait, cuff) is reported here.
+    pub fn resolve(&self, res: &Resources) -> Result<ResolvedScenario> {
+        if let Some(r) = self.resolve_normalised(res) {
+            return r;
         }
         let f = &self.file;
         let mut cx = Ctx { s: self, res, file: f.clone(), inputs: Vec::new(), warnings: Vec::new() };
