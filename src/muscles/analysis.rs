@@ -67,6 +67,8 @@ pub struct MuscleSetup {
     /// The subject's body mass (kg), for the basal rate and W/kg.
     pub body_mass_kg: f64,
     constants: Vec<MuscleConstants>,
+    /// Each muscle's fibre height `l_opt sin(alpha_opt)` (m).
+    heights_m: Vec<f64>,
 }
 
 impl MuscleSetup {
@@ -88,7 +90,9 @@ impl MuscleSetup {
                 max_velocity_lopt_per_s: m.params.max_contraction_velocity_lopt_per_s,
             })
             .collect();
-        Self { set, cost, model, reserve_nm, body_mass_kg, constants }
+        let heights_m =
+            set.muscles.iter().map(|m| m.params.optimal_fiber_length_m * m.params.pennation_at_optimal_rad.sin()).collect();
+        Self { set, cost, model, reserve_nm, body_mass_kg, constants, heights_m }
     }
 
     /// The number of values a sample carries.
@@ -169,17 +173,12 @@ impl Analysis {
         let mut passive_moment = [0.0; 3];
         let mut outside = 0;
         for (i, m) in set.muscles.iter().enumerate() {
-            let (l, arms) = set.length_and_arms(i, j.q_rad);
-            outside += usize::from(!m.path.covers(j.q_rad));
+            let (l, arms, inside) = set.length_arms_inside(i, j.q_rad);
+            outside += usize::from(!inside);
             let v_mt = -(arms[0] * j.qd_rad_s[0] + arms[1] * j.qd_rad_s[1] + arms[2] * j.qd_rad_s[2]);
             let p = &m.params;
-            let f = curves::fibre_kinematics(
-                l,
-                v_mt,
-                p.tendon_slack_length_m,
-                p.optimal_fiber_length_m,
-                p.pennation_at_optimal_rad,
-            );
+            let w = self.setup.heights_m[i];
+            let f = curves::fibre_with_height(l, v_mt, p.tendon_slack_length_m, p.optimal_fiber_length_m, w);
             let ln = f.length_norm.clamp(curves::MIN_NORM_FIBER_LENGTH, curves::MAX_NORM_FIBER_LENGTH);
             let vn = (f.velocity_per_s / p.max_contraction_velocity_lopt_per_s).clamp(-1.0, 1.0);
             let fl = curves::active_force_length(ln);

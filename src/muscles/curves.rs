@@ -65,11 +65,16 @@ pub fn force_velocity(v: f64) -> f64 {
     d1 * (x + (x * x + 1.0).sqrt()).ln() + d4
 }
 
+/// The passive curve's offset and its denominator (computed once).
+static PASSIVE: std::sync::LazyLock<(f64, f64)> = std::sync::LazyLock::new(|| {
+    let offset = (K_PE * (MIN_NORM_FIBER_LENGTH - 1.0) / PASSIVE_STRAIN_AT_ONE).exp();
+    (offset, K_PE.exp() - offset)
+});
+
 /// Passive fibre force multiplier at normalised fibre length `l` (0 at 0.2, 1 at 1.6).
 pub fn passive_force_length(l: f64) -> f64 {
-    let e0 = PASSIVE_STRAIN_AT_ONE;
-    let offset = (K_PE * (MIN_NORM_FIBER_LENGTH - 1.0) / e0).exp();
-    ((K_PE * (l - 1.0) / e0).exp() - offset) / (K_PE.exp() - offset)
+    let (offset, denominator) = *PASSIVE;
+    ((K_PE * (l - 1.0) / PASSIVE_STRAIN_AT_ONE).exp() - offset) / denominator
 }
 
 /// Activation's rate (1/s) at activation `a` under excitation `e`, with the time constants
@@ -97,7 +102,11 @@ pub struct Fibre {
 /// `l_M = sqrt((l_MT - l_slack)^2 + w^2)`, `v_M = v_MT cos(alpha)`. The fibre's length along
 /// the tendon is floored at a tenth of the optimum (a path shorter than its tendon).
 pub fn fibre_kinematics(l_mt_m: f64, v_mt_m_s: f64, l_slack_m: f64, l_opt_m: f64, alpha_opt_rad: f64) -> Fibre {
-    let w = l_opt_m * alpha_opt_rad.sin();
+    fibre_with_height(l_mt_m, v_mt_m_s, l_slack_m, l_opt_m, l_opt_m * alpha_opt_rad.sin())
+}
+
+/// [`fibre_kinematics`] with the fibre's height `w_m = l_opt sin(alpha_opt)` (m) known.
+pub fn fibre_with_height(l_mt_m: f64, v_mt_m_s: f64, l_slack_m: f64, l_opt_m: f64, w: f64) -> Fibre {
     let along = (l_mt_m - l_slack_m).max(0.1 * l_opt_m);
     let l_m = along.hypot(w);
     let cos = along / l_m;

@@ -201,9 +201,15 @@ impl MuscleSet {
     /// Muscle `i`'s length (m) and moment arms about hip, knee, ankle (m; `r = -dL/dq`,
     /// flexion and dorsiflexion positive) at `q_rad`.
     pub fn length_and_arms(&self, i: usize, q_rad: [f64; 3]) -> (f64, [f64; 3]) {
-        let (l, d) = self.muscles[i].path.length_and_slope(q_rad);
+        let (l, r, _) = self.length_arms_inside(i, q_rad);
+        (l, r)
+    }
+
+    /// [`Self::length_and_arms`] and whether the angles are inside the muscle's table.
+    pub fn length_arms_inside(&self, i: usize, q_rad: [f64; 3]) -> (f64, [f64; 3], bool) {
+        let (l, d, inside) = self.muscles[i].path.evaluate(q_rad);
         // (+ 0.0: a joint the path does not span has a zero arm, not -0.)
-        (self.scale * l, d.map(|x| -self.scale * x + 0.0))
+        (self.scale * l, d.map(|x| -self.scale * x + 0.0), inside)
     }
 
     /// Every muscle at the joint angles `q_rad` (hip flexion, knee flexion, ankle

@@ -96,28 +96,79 @@ impl PathTable {
     /// The length (m) at the joint angles `q_rad` (hip, knee, ankle; exoleg's signs) and its
     /// derivatives dL/dq (m/rad; 0 for a joint the path does not span).
     pub fn length_and_slope(&self, q_rad: [f64; 3]) -> (f64, [f64; 3]) {
+        let (l, s, _) = self.evaluate(q_rad);
+        (l, s)
+    }
+
+    /// [`Self::length_and_slope`] and whether the angles are inside the grid.
+    pub fn evaluate(&self, q_rad: [f64; 3]) -> (f64, [f64; 3], bool) {
         let d = self.joints.len();
         let mut axes = [Axis::default(); 3];
         for (k, &j) in self.joints.iter().enumerate() {
             axes[k] = Axis::at(q_rad[j].to_degrees(), self.start_deg[k], self.step_deg[k], self.count[k]);
         }
+        let (mut l, dl) = match d {
+            1 => self.sum1(&axes[0]),
+            2 => self.sum2(&axes[0], &axes[1]),
+            _ => self.sum_any(&axes[..d]),
+        };
+        let mut slope = [0.0; 3];
+        let mut inside = true;
+        for (k, &j) in self.joints.iter().enumerate() {
+            // Per grid step to per radian; past the edge the length goes on along the slope.
+            let per_rad = dl[k] / self.step_deg[k].to_radians();
+            slope[j] = per_rad;
+            l += per_rad * (axes[k].beyond * self.step_deg[k]).to_radians();
+            inside &= axes[k].beyond == 0.0;
+        }
+        (l, slope, inside)
+    }
+
+    /// One joint: the value and its slope per grid step.
+    fn sum1(&self, a: &Axis) -> (f64, [f64; 3]) {
+        let (mut l, mut d) = (0.0, 0.0);
+        for m in 0..4 {
+            let p = self.length_m[a.index[m]];
+            l += a.w[m] * p;
+            d += a.dw[m] * p;
+        }
+        (l, [d, 0.0, 0.0])
+    }
+
+    /// Two joints (the second fastest in the table).
+    fn sum2(&self, a: &Axis, b: &Axis) -> (f64, [f64; 3]) {
+        let stride = self.count[1];
+        let (mut l, mut d0, mut d1) = (0.0, 0.0, 0.0);
+        for m in 0..4 {
+            let row = &self.length_m[a.index[m] * stride..];
+            let (mut v, mut dv) = (0.0, 0.0);
+            for n in 0..4 {
+                let p = row[b.index[n]];
+                v += b.w[n] * p;
+                dv += b.dw[n] * p;
+            }
+            l += a.w[m] * v;
+            d0 += a.dw[m] * v;
+            d1 += a.w[m] * dv;
+        }
+        (l, [d0, d1, 0.0])
+    }
+
+    /// Any number of joints: the tensor product's 4^d terms.
+    fn sum_any(&self, axes: &[Axis]) -> (f64, [f64; 3]) {
+        let d = axes.len();
         let strides = self.strides();
         let (mut l, mut dl) = (0.0, [0.0; 3]);
-        let combos = 4usize.pow(d as u32);
-        for c in 0..combos {
+        for c in 0..4usize.pow(d as u32) {
             let (mut offset, mut w) = (0, 1.0);
             let mut dw = [1.0; 3];
-            for k in 0..d {
+            for (k, a) in axes.iter().enumerate() {
                 let m = (c >> (2 * k)) & 3;
-                let a = &axes[k];
                 offset += a.index[m] * strides[k];
                 for (kk, dwk) in dw.iter_mut().enumerate().take(d) {
                     *dwk *= if kk == k { a.dw[m] } else { a.w[m] };
                 }
                 w *= a.w[m];
-            }
-            if w == 0.0 && dw.iter().take(d).all(|x| *x == 0.0) {
-                continue;
             }
             let p = self.length_m[offset];
             l += w * p;
@@ -125,14 +176,7 @@ impl PathTable {
                 dl[k] += dw[k] * p;
             }
         }
-        let mut slope = [0.0; 3];
-        for (k, &j) in self.joints.iter().enumerate() {
-            // Per grid step to per radian; past the edge the length goes on along the slope.
-            let per_rad = dl[k] / self.step_deg[k].to_radians();
-            slope[j] = per_rad;
-            l += per_rad * (axes[k].beyond * self.step_deg[k]).to_radians();
-        }
-        (l, slope)
+        (l, dl)
     }
 
     /// Whether the angles are inside the grid on every spanned joint.
