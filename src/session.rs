@@ -199,7 +199,12 @@ impl<S: RecordSink> Session<S> {
         let mut summary = self.metrics.finish(self.wall.as_secs_f64());
         summary.contact = self.walking.map(|w| w.finish());
         summary.wearer = self.wearer.and_then(|w| w.finish());
-        summary.safety = self.safety.map(|s| s.finish(sim.controller_stop().map(|(t, _)| t)));
+        summary.safety = self.safety.map(|s| s.finish(sim.controller_stop().map(|(t, why)| (t, why.cause))));
+        summary.controller_stop = sim.controller_stop().map(|(t_s, why)| crate::metrics::ControllerStopReport {
+            t_s,
+            cause: why.cause,
+            message: why.message.clone(),
+        });
         summary.engine =
             sc.leg().map(|l| if l.reduced.is_some() || l.walker.is_some() { "reduced" } else { "rapier" }.to_string());
         (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();

@@ -256,6 +256,57 @@ impl SampleInput {
 pub struct ControlStop {
     /// What the controller said.
     pub message: String,
+    /// A deliberate stop, a command that is not a number, or a failure (crash, exception).
+    pub cause: StopCause,
+}
+
+impl ControlStop {
+    /// The controller stops on purpose (a plugin's stop status, your controller's own check):
+    /// under `controller.on_stop = "failsafe"` a fault campaign counts it as a detection.
+    pub fn stop(message: impl Into<String>) -> Self {
+        Self { message: message.into(), cause: StopCause::Stop }
+    }
+
+    /// The controller failed (a crash, an `exit()`, a hang, a broken protocol or link, an
+    /// exception): never a detection.
+    pub fn crash(message: impl Into<String>) -> Self {
+        Self { message: message.into(), cause: StopCause::Crash }
+    }
+
+    /// The controller's command is not a number.
+    pub fn command(message: impl Into<String>) -> Self {
+        Self { message: message.into(), cause: StopCause::Command }
+    }
+}
+
+/// Why a sampled controller stopped (`summary.json` `controller_stop.cause`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopCause {
+    /// On purpose: a plugin's stop status, the modelled firmware's budget stop
+    /// (`controller.overrun_policy = "stop"`), a controller's own [`ControlStop::stop`].
+    Stop,
+    /// Its command is not a number (the loop's guard stops it).
+    Command,
+    /// It failed: killed by a signal, exited, hung, broke the protocol or lost its link, or
+    /// raised an exception. Never a detection; a run whose controller crashed does not pass.
+    Crash,
+}
+
+impl StopCause {
+    /// The word `summary.json` uses.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            StopCause::Stop => "stop",
+            StopCause::Command => "command",
+            StopCause::Crash => "crash",
+        }
+    }
+
+    /// Whether a fault campaign may count the stop as the controller's detection.
+    pub fn detects(&self) -> bool {
+        *self != StopCause::Crash
+    }
 }
 
 /// A controller that runs once per sample period on the readings and holds its output

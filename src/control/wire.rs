@@ -37,8 +37,11 @@ pub const HEADER_LEN: usize = 24;
 /// Most bytes of one datagram this protocol sends or accepts (a SETUP with 256 parameters of
 /// long names fits; a UDP datagram on localhost carries it).
 pub const MAX_DATAGRAM: usize = 32 * 1024;
-/// Longest parameter name on the wire (bytes).
+/// Longest parameter name on the wire (bytes): `controller.plugin.params` refuses a longer
+/// one on every route, so no name is ever cut.
 pub const MAX_NAME_LEN: usize = 255;
+/// Bytes of a SETUP payload before its parameters.
+pub const SETUP_FIXED_LEN: usize = 80;
 
 /// Message types (the header's `type`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
