@@ -279,35 +279,7 @@ impl ControlStop {
     }
 }
 
-/// Why a sampled controller stopped (`summary.json` `controller_stop.cause`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StopCause {
-    /// On purpose: a plugin's stop status, the modelled firmware's budget stop
-    /// (`controller.overrun_policy = "stop"`), a controller's own [`ControlStop::stop`].
-    Stop,
-    /// Its command is not a number (the loop's guard stops it).
-    Command,
-    /// It failed: killed by a signal, exited, hung, broke the protocol or lost its link, or
-    /// raised an exception. Never a detection; a run whose controller crashed does not pass.
-    Crash,
-}
-
-impl StopCause {
-    /// The word `summary.json` uses.
-    pub fn as_str(&self) -> &'static str {
-        match self {
-            StopCause::Stop => "stop",
-            StopCause::Command => "command",
-            StopCause::Crash => "crash",
-        }
-    }
-
-    /// Whether a fault campaign may count the stop as the controller's detection.
-    pub fn detects(&self) -> bool {
-        *self != StopCause::Crash
-    }
-}
+pub use crate::faults::StopCause;
 
 /// A controller that runs once per sample period on the readings and holds its output
 /// (zero-order hold): the built-in firmware controllers, and every controller from outside the

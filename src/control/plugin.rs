@@ -75,6 +75,16 @@ pub const PLUGIN_LOG_LEN: usize = 8;
 pub const MESSAGE_LEN: usize = 160;
 /// Most parameters a plugin may be given.
 pub const MAX_PARAMS: usize = 256;
+/// Most bytes of one datagram of the out-of-process protocol (`super::wire`, which re-exports
+/// the sizes here): every route checks that a plugin's SETUP fits it.
+pub const MAX_DATAGRAM: usize = 32 * 1024;
+/// Longest parameter name (bytes): `controller.plugin.params` refuses a longer one on every
+/// route, so no name is ever cut on the wire.
+pub const MAX_NAME_LEN: usize = 255;
+/// Bytes of the wire's SETUP payload before its parameters.
+pub const SETUP_FIXED_LEN: usize = 80;
+/// Bytes of the wire's header.
+pub const WIRE_HEADER_LEN: usize = 24;
 /// Status: the sample is fine.
 pub const STATUS_OK: i32 = 0;
 /// Status: the sample is usable but the plugin warns (counted; the last message is kept).
@@ -144,15 +154,15 @@ impl PluginParams {
     pub fn check(&self) -> Result<(), (String, String)> {
         let params = self.numbers()?;
         let setup: usize = params.iter().map(|(n, _)| 2 + n.as_bytes().len() + 8).sum();
-        let bytes = super::wire::HEADER_LEN + super::wire::SETUP_FIXED_LEN + setup;
-        if bytes > super::wire::MAX_DATAGRAM {
+        let bytes = WIRE_HEADER_LEN + SETUP_FIXED_LEN + setup;
+        if bytes > MAX_DATAGRAM {
             return Err((
                 "controller.plugin.params".into(),
                 format!(
                     "{} parameters whose names and values take {bytes} bytes on the wire, more than one datagram \
                      carries ({}): shorten the names or give fewer",
                     params.len(),
-                    super::wire::MAX_DATAGRAM
+                    MAX_DATAGRAM
                 ),
             ));
         }
@@ -167,7 +177,7 @@ impl PluginParams {
         if !(t > 0.0 && t <= MAX_TIMEOUT_S) {
             return Err((
                 "controller.plugin.timeout_s".into(),
-                format!("must be in (0, {MAX_TIMEOUT_S}] s, got {}", crate::scenario::validate::num(t)),
+                format!("must be in (0, {MAX_TIMEOUT_S}] s, got {}", crate::error::num(t)),
             ));
         }
         let (lo, hi) = MEMORY_MB_RANGE;
@@ -200,9 +210,9 @@ impl PluginParams {
                 if !x.is_finite() {
                     return Err((key, format!("must be a finite number, got {x}")));
                 }
-                if k.is_empty() || k.len() > super::wire::MAX_NAME_LEN {
+                if k.is_empty() || k.len() > MAX_NAME_LEN {
                     let n = k.len();
-                    return Err((key, format!("a name of 1..={} bytes, got {n}", super::wire::MAX_NAME_LEN)));
+                    return Err((key, format!("a name of 1..={MAX_NAME_LEN} bytes, got {n}")));
                 }
                 let name = CString::new(k.as_str()).map_err(|_| (key, "the name contains a NUL byte".to_string()))?;
                 Ok((name, x))

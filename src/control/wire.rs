@@ -25,6 +25,8 @@
 pub use super::plugin::InstanceSetup as Setup;
 use super::plugin::{ExolegCommand, ExolegReadings, ABI_MAJOR, ABI_MINOR, MESSAGE_LEN};
 
+const _: () = assert!(HEADER_LEN == super::plugin::WIRE_HEADER_LEN);
+
 #[cfg(target_endian = "big")]
 compile_error!("the wire protocol copies the ABI structs as they are in memory: little-endian hosts only");
 
@@ -34,14 +36,7 @@ pub const MAGIC: u32 = 0x4C4F_5845;
 pub const VERSION: u16 = 1;
 /// Bytes of the header.
 pub const HEADER_LEN: usize = 24;
-/// Most bytes of one datagram this protocol sends or accepts (a SETUP with 256 parameters of
-/// long names fits; a UDP datagram on localhost carries it).
-pub const MAX_DATAGRAM: usize = 32 * 1024;
-/// Longest parameter name on the wire (bytes): `controller.plugin.params` refuses a longer
-/// one on every route, so no name is ever cut.
-pub const MAX_NAME_LEN: usize = 255;
-/// Bytes of a SETUP payload before its parameters.
-pub const SETUP_FIXED_LEN: usize = 80;
+pub use super::plugin::{MAX_DATAGRAM, MAX_NAME_LEN, SETUP_FIXED_LEN};
 
 /// Message types (the header's `type`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

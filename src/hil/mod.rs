@@ -84,7 +84,7 @@ impl HilOptions {
         ];
         for (flag, v, (lo, hi)) in flags {
             if !(lo..=hi).contains(&v) {
-                let v = crate::scenario::validate::num(v);
+                let v = crate::error::num(v);
                 return Err((flag.into(), format!("must be in {lo}..={hi} s, got {v}")));
             }
         }

@@ -211,7 +211,7 @@ pub struct ControllerStopReport {
     pub t_s: f64,
     /// `stop` (on purpose: a stop status), `command` (not a number) or `crash` (a signal, an
     /// exit, a hang, a broken link, an exception: the run does not pass).
-    pub cause: crate::control::StopCause,
+    pub cause: crate::faults::StopCause,
     /// What the controller, or exoleg about it, said.
     pub message: String,
 }
@@ -220,7 +220,7 @@ impl Summary {
     /// Why the run's controller crashed, if it did (under `controller.on_stop = "failsafe"`
     /// the run goes on, and does not pass).
     pub fn controller_crash(&self) -> Option<String> {
-        let s = self.controller_stop.as_ref().filter(|s| s.cause == crate::control::StopCause::Crash)?;
+        let s = self.controller_stop.as_ref().filter(|s| s.cause == crate::faults::StopCause::Crash)?;
         Some(format!("the controller crashed at t = {:.6} s: {}", s.t_s, s.message))
     }
 

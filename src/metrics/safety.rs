@@ -216,7 +216,7 @@ impl SafetyMetrics {
 
     /// The figures, with the controller's stop (its time, s, and cause) if it stopped: a
     /// crash is never a detection.
-    pub fn finish(&self, controller_stop: Option<(f64, crate::control::StopCause)>) -> SafetySummary {
+    pub fn finish(&self, controller_stop: Option<(f64, crate::faults::StopCause)>) -> SafetySummary {
         let controller_stop_s = controller_stop.map(|(t, _)| t);
         let detecting_stop = controller_stop.filter(|(_, c)| c.detects()).map(|(t, _)| t);
         let l = &self.setup.limits;
