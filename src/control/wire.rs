@@ -13,8 +13,9 @@
 //!                           n_params x {name_len u16, name bytes (UTF-8), value f64}
 //! peer  -> plant  READY     status i32 (0 created, 2 refused), reserved u32, message [160]
 //! plant -> peer   READINGS  the ABI's ExolegReadings (its bytes, `size` first)
-//! peer  -> plant  COMMAND   status i32, call u32 (0 step, 1 reset), compute_ns u64, the ABI's
-//!                           ExolegCommand
+//! peer  -> plant  COMMAND   status i32, call u32 (0 step, 1 reset: its own COMMAND before the
+//!                           first step's, or instead of it when not ok), compute_ns u64, the
+//!                           ABI's ExolegCommand
 //! plant -> peer   BYE       status i32, reserved u32, message [160] (the run is over)
 //! plant -> peer   REFUSE    status i32, reserved u32, message [160] (the HELLO is refused)
 //! ```
@@ -135,8 +136,9 @@ pub enum Message {
     Command {
         /// The plugin's status for the call.
         status: i32,
-        /// The call the status is from: [`CALL_STEP`] or [`CALL_RESET`] (a reset that did not
-        /// return ok; the step was not called).
+        /// The call the status is from: [`CALL_STEP`] or [`CALL_RESET`] (the first sample's
+        /// `exoleg_reset`: the isolated plugin's host sends its status in a COMMAND of its own
+        /// before the step's; a peer may send it only when it is not ok).
         call: u32,
         /// Wall time of the step call as the peer measured it (ns).
         compute_ns: u64,
@@ -159,7 +161,8 @@ pub enum Message {
 
 /// [`Message::Command`]'s `call`: the status is `exoleg_step`'s.
 pub const CALL_STEP: u32 = 0;
-/// [`Message::Command`]'s `call`: the status is `exoleg_reset`'s (not ok; no step was made).
+/// [`Message::Command`]'s `call`: the status is `exoleg_reset`'s (a stop or an unknown status:
+/// no step follows; ok or a warning: the step's COMMAND follows).
 pub const CALL_RESET: u32 = 1;
 
 /// Bytes of a READINGS payload.
