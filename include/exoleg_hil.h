@@ -20,7 +20,9 @@
  *     exoleg -> peer  BYE / REFUSE  status i32, reserved u32, message[160]
  * The structs are sent as they lie in memory: a big-endian target swaps every field.
  * READINGS of a sample already answered (exoleg resends after --resend-s) get the same
- * COMMAND again, without a second step.
+ * COMMAND again, without a second step. The protocol is unauthenticated: exoleg takes the
+ * first peer that says HELLO (from an address `--allow-from` allows) and from then on drops
+ * every datagram from anyone else.
  */
 #ifndef EXOLEG_HIL_H
 #define EXOLEG_HIL_H

@@ -326,6 +326,10 @@ pub enum Command {
         /// the last, or `zero`).
         #[arg(long, value_enum, default_value = "hold")]
         on_miss: crate::hil::OnMiss,
+        /// Only this address (an IP: any port; or ADDR:PORT) may be the peer (repeatable). The
+        /// protocol is unauthenticated: without it, whoever says HELLO first drives the valve.
+        #[arg(long, value_name = "ADDR")]
+        allow_from: Vec<String>,
     },
     /// (Internal) serve an isolated plugin to the run that started this process
     /// (`controller.plugin.isolate`).
@@ -337,18 +341,31 @@ pub enum Command {
         /// The plugin library.
         #[arg(long)]
         library: PathBuf,
+        /// The plugin's address space (MiB; `controller.plugin.memory_mb`).
+        #[arg(long)]
+        memory_mb: Option<u64>,
     },
 }
 
-fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path) {
+/// The report of a run; `driver`: the controller that drove it when it is not the scenario's
+/// own (a HIL peer).
+fn print_summary(sc: &ResolvedScenario, m: &Summary, out: &Path, driver: Option<&str>) {
     let f = &sc.file;
     println!("scenario            {}", sc.source_name);
     println!(
         "controller          {}  (plant {:?}, hydraulics {:?})",
-        f.controller.kind.as_str(),
+        driver.unwrap_or(f.controller.kind.as_str()),
         f.plant.kind,
         f.hydraulics.model
     );
+    if let Some(c) = &m.controller_stop {
+        println!(
+            "controller stop     at t = {:.6} s ({}): {}; the device went to its fail-safe state",
+            c.t_s,
+            c.cause.as_str(),
+            c.message
+        );
+    }
     if sc.model.desired_force {
         println!("max |F_L - F_d|     {:.4} N", m.max_abs_force_error_n);
         println!(
@@ -472,7 +489,7 @@ fn warn_base(base: &Scenario) {
 
 fn warn(warnings: &[String]) {
     for w in warnings {
-        eprintln!("warning: {w}");
+        eprintln!("warning: {}", output::text::terminal(w));
     }
 }
 
@@ -575,8 +592,9 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, flags: Ru
         return Err(Error::Write { path: out.clone(), message: "the run's summary.json is not there".into() });
     }
     if !quiet {
-        print_summary(&sc, &report.summary, &out);
+        print_summary(&sc, &report.summary, &out, None);
     }
+    warn_controller_stop(&report.summary);
     if let Some(s) = report.summary.end_stops.filter(|s| !s.is_clear()) {
         eprintln!(
             "warning: the leg ran into its end stops: knee at its lower limit {:.3} s, upper limit {:.3} s, \
@@ -598,15 +616,40 @@ fn cmd_run(scenario: Option<PathBuf>, out: PathBuf, sets: Vec<String>, flags: Ru
         let verdict = if c.pass { "pass" } else { "FAIL" };
         println!("criterion {:<30} {verdict}: {:.4} (limit {:.4})", c.name, c.value, c.limit);
     }
-    if report.passed() {
-        Ok(EXIT_OK)
-    } else {
-        let failed: Vec<&str> = report.criteria.iter().filter(|c| !c.pass).map(|c| c.name.as_str()).collect();
-        Err(Error::Criteria(format!("{} failed: {}", sc.source_name, failed.join(", "))))
+    verdict(&sc, &report)
+}
+
+/// A controller's stop under `controller.on_stop = "failsafe"` said on stderr (whatever
+/// `--quiet` says: the run went on without its controller).
+fn warn_controller_stop(m: &Summary) {
+    if let Some(c) = m.controller_stop.as_ref().filter(|c| c.cause != crate::control::StopCause::Crash) {
+        eprintln!(
+            "warning: the controller stopped at t = {:.6} s ({}): {}; the device went to its fail-safe state \
+             (controller.on_stop = \"failsafe\"; summary.json: controller_stop)",
+            c.t_s,
+            c.cause.as_str(),
+            c.message
+        );
     }
 }
 
-/// `exoleg hil`: the scenario's plant against a controller peer over UDP.
+/// A run's exit: 0 if it passes, else exit 4 naming the failed criteria and a crashed
+/// controller.
+fn verdict(sc: &ResolvedScenario, report: &study::RunReport) -> Result<i32> {
+    if report.passed() {
+        return Ok(EXIT_OK);
+    }
+    let mut failed: Vec<String> = report.criteria.iter().filter(|c| !c.pass).map(|c| c.name.clone()).collect();
+    if let Some(crash) = report.summary.controller_crash() {
+        failed.push(format!(
+            "{crash} (controller.on_stop = \"failsafe\": the device went to its fail-safe state and the run went on)"
+        ));
+    }
+    Err(Error::Criteria(format!("{} failed: {}", sc.source_name, failed.join(", "))))
+}
+
+/// `exoleg hil`: the scenario's plant against a controller peer over UDP. Everything is
+/// checked before the port opens (the flags, the scenario, what goes to the peer, `--out`).
 fn cmd_hil(
     scenario: Option<PathBuf>,
     sets: Vec<String>,
@@ -614,13 +657,7 @@ fn cmd_hil(
     out: PathBuf,
     quiet: bool,
 ) -> Result<i32> {
-    for (flag, v) in
-        [("--wait-s", opts.wait_s), ("--stall-timeout-s", opts.stall_timeout_s), ("--resend-s", opts.resend_s)]
-    {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(Error::input(flag, "", format!("must be a finite number > 0 (s), got {v}")));
-        }
-    }
+    opts.check().map_err(|(flag, e)| Error::input(flag, "", e))?;
     let sc = Scenario::load(scenario.as_deref(), &sets)?.resolve(&Resources::new())?;
     warn(&sc.warnings);
     let m = &sc.model;
@@ -628,8 +665,11 @@ fn cmd_hil(
         let why = "a controller peer runs sampled: set controller.sample_period_s > 0";
         return Err(Error::input(&sc.source_name, "controller.sample_period_s", why));
     }
+    // The same check of what the peer gets as a plugin's, on every route.
+    let plugin = &sc.file.controller.plugin;
+    plugin.check().map_err(|(k, e)| Error::input(&sc.source_name, k, e))?;
     let c = &m.nominal.c;
-    let params = sc.file.controller.plugin.numbers().map_err(|(k, e)| Error::input(&sc.source_name, k, e))?;
+    let params = plugin.numbers().map_err(|(k, e)| Error::input(&sc.source_name, k, e))?;
     let setup = crate::control::plugin::InstanceSetup {
         sample_period_s: m.sample_period_s,
         valve_command_limit: m.valve_limit.0,
@@ -637,20 +677,30 @@ fn cmd_hil(
         seed: m.seed,
         params: params.into_iter().map(|(n, v)| (n.to_string_lossy().into_owned(), v)).collect(),
     };
-    let link = crate::hil::HilController::bind(&opts.listen).map_err(|e| Error::input("--listen", "", e))?;
-    let at = link.local_addr().map_or(opts.listen.clone(), |a| a.to_string());
-    eprintln!("exoleg hil: waiting for a controller peer on {at} ({:?})", opts.mode);
+    let dir = crate::output::OutputDir::prepare_with_inputs(&out, "--out", &sc.input_paths())?;
+    let link = crate::hil::HilController::bind(&opts).map_err(|e| Error::input("--listen", "", e))?;
+    let at = link.local_addr();
+    let shown = at.map_or(opts.listen.clone(), |a| a.to_string());
+    eprintln!("exoleg hil: waiting for a controller peer on {shown} ({:?})", opts.mode);
+    if at.is_some_and(|a| !a.ip().is_loopback()) && opts.allow_from.is_empty() {
+        eprintln!(
+            "warning: --listen {shown} is reachable beyond this machine and the protocol is unauthenticated: \
+             whoever says HELLO first drives the valve (give --allow-from ADDR, or listen on 127.0.0.1)"
+        );
+    }
     let stopped = |message| Error::ControllerStopped { time_s: 0.0, controller: "hil".into(), message };
-    let ctrl = crate::hil::HilController::on_link(link, &setup, sc.file.controller.plugin.log.clone(), opts)
-        .map_err(stopped)?;
-    let report = study::RunBuilder::new(&sc).controller(Box::new(ctrl)).write_to(&out)?;
+    let ctrl = crate::hil::HilController::on_link(link, &setup, plugin.log.clone(), opts).map_err(stopped)?;
+    let driver = ctrl.peer_name();
+    eprintln!("exoleg hil: {driver} drives this run");
+    let report = study::RunBuilder::new(&sc).controller(Box::new(ctrl)).write_into(dir)?;
     if !quiet {
-        print_summary(&sc, &report.summary, &out);
+        print_summary(&sc, &report.summary, &out, Some(&driver));
         if let Some(l) = &report.summary.controller_link {
             println!("link                {l}");
         }
     }
-    Ok(EXIT_OK)
+    warn_controller_stop(&report.summary);
+    verdict(&sc, &report)
 }
 
 /// `exoleg sweep`.
@@ -905,7 +955,7 @@ fn cmd_gait_check(dirs: Vec<PathBuf>, out: PathBuf, a: GaitCheckArgs) -> Result<
     let bad = report.bad_input();
     for t in &bad {
         if let crate::study::gait_check::Outcome::BadInput(m) = &t.outcome {
-            eprintln!("bad input: {m}");
+            eprintln!("bad input: {}", output::text::terminal(m));
         }
     }
     let (meet, n) = report.count_meeting(report.trials.iter());
@@ -1016,20 +1066,31 @@ fn absolute_paths(c: Command) -> Command {
             run.scenario = opt(run.scenario);
             Command::GaitCheck { dirs: dirs.into_iter().map(absolute).collect(), out: absolute(out), run }
         }
-        Command::Hil { scenario, listen, mode, out, sets, quiet, wait_s, stall_timeout_s, resend_s, on_miss } => {
-            Command::Hil {
-                scenario: opt(scenario),
-                listen,
-                mode,
-                out: absolute(out),
-                sets,
-                quiet,
-                wait_s,
-                stall_timeout_s,
-                resend_s,
-                on_miss,
-            }
-        }
+        Command::Hil {
+            scenario,
+            listen,
+            mode,
+            out,
+            sets,
+            quiet,
+            wait_s,
+            stall_timeout_s,
+            resend_s,
+            on_miss,
+            allow_from,
+        } => Command::Hil {
+            scenario: opt(scenario),
+            listen,
+            mode,
+            out: absolute(out),
+            sets,
+            quiet,
+            wait_s,
+            stall_timeout_s,
+            resend_s,
+            on_miss,
+            allow_from,
+        },
         c @ Command::PluginHost { .. } => c,
     }
 }
@@ -1042,9 +1103,9 @@ pub fn exit(code: i32) -> ! {
 /// Execute a parsed command line. Returns the process exit code on success. While it runs,
 /// an `exit()` from anything but exoleg (a plugin) ends the process with exit 3, never 0.
 pub fn run(cli: Cli) -> Result<i32> {
-    if let Command::PluginHost { fd, library } = &cli.command {
+    if let Command::PluginHost { fd, library, memory_mb } = &cli.command {
         // A child of a run: its exit status (a plugin's exit() included) is the run's to read.
-        return Ok(crate::control::isolate::child::serve(*fd, library));
+        return Ok(crate::control::isolate::child::serve(*fd, library, *memory_mb));
     }
     let _armed = crate::control::plugin::exit_guard::arm();
     match absolute_paths(cli.command) {
@@ -1069,8 +1130,25 @@ pub fn run(cli: Cli) -> Result<i32> {
         Command::Urdf { mass_kg, height_m, leg_length_m, sex, out } => {
             cmd_urdf(mass_kg, height_m, leg_length_m, sex, out)
         }
-        Command::Hil { scenario, listen, mode, out, sets, quiet, wait_s, stall_timeout_s, resend_s, on_miss } => {
-            let opts = crate::hil::HilOptions { listen, mode, wait_s, stall_timeout_s, resend_s, on_miss };
+        Command::Hil {
+            scenario,
+            listen,
+            mode,
+            out,
+            sets,
+            quiet,
+            wait_s,
+            stall_timeout_s,
+            resend_s,
+            on_miss,
+            allow_from,
+        } => {
+            let allow_from = allow_from
+                .iter()
+                .map(|a| crate::hil::link::Allowed::parse(a))
+                .collect::<std::result::Result<Vec<_>, String>>()
+                .map_err(|e| Error::input("--allow-from", "", e))?;
+            let opts = crate::hil::HilOptions { listen, mode, wait_s, stall_timeout_s, resend_s, on_miss, allow_from };
             cmd_hil(scenario, sets, opts, out, quiet)
         }
         Command::PluginHost { .. } => Ok(EXIT_OK),

@@ -148,3 +148,14 @@ pub fn clip(s: &str) -> String {
     }
     out
 }
+
+/// A number as a message shows it: plain in the everyday range, else in exponent form (no
+/// 309-digit 1e308).
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || (1e-4..1e15).contains(&a) || !v.is_finite() {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}

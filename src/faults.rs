@@ -264,3 +264,35 @@ impl FaultClock {
         self.onsets.iter().flatten().copied().reduce(f64::min)
     }
 }
+
+/// Why a sampled controller stopped under `controller.on_stop = "failsafe"` (the device then
+/// in its fail-safe state; `summary.json` `controller_stop.cause`): a deliberate stop is a
+/// detection, a crash never is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopCause {
+    /// On purpose: a plugin's stop status, the modelled firmware's budget stop
+    /// (`controller.overrun_policy = "stop"`), a controller's own `ControlStop::stop`.
+    Stop,
+    /// Its command is not a number (the loop's guard stops it).
+    Command,
+    /// It failed: killed by a signal, exited, hung, broke the protocol or lost its link, or
+    /// raised an exception. Never a detection; a run whose controller crashed does not pass.
+    Crash,
+}
+
+impl StopCause {
+    /// The word `summary.json` uses.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            StopCause::Stop => "stop",
+            StopCause::Command => "command",
+            StopCause::Crash => "crash",
+        }
+    }
+
+    /// Whether a fault campaign may count the stop as the controller's detection.
+    pub fn detects(&self) -> bool {
+        *self != StopCause::Crash
+    }
+}

@@ -129,8 +129,8 @@ pub struct Row {
     pub contact: Option<ContactRow>,
     /// What the device does and its sensors measure (leg runs).
     pub device: Option<DeviceRow>,
-    /// A fault is active, or the device is in its fail-safe state after its controller
-    /// stopped (runs with `[[faults]]` or `controller.on_stop = "failsafe"`).
+    /// One of the run's `[[faults]]` is active (the column of runs with `[[faults]]` or
+    /// `controller.on_stop = "failsafe"`; a controller's stop is `summary.json` `controller_stop`).
     pub fault_active: bool,
     /// The controller's logged channels (the first `layout.log.len()` are used).
     pub log: [f64; MAX_LOGGED],

@@ -218,7 +218,12 @@ impl<S: RecordSink> Session<S> {
         if let Some(w) = summary.wearer.as_mut() {
             w.metabolics = self.muscles.as_ref().and_then(|m| m.finish());
         }
-        summary.safety = self.safety.map(|s| s.finish(sim.controller_stop().map(|(t, _)| t)));
+        summary.safety = self.safety.map(|s| s.finish(sim.controller_stop().map(|(t, why)| (t, why.cause))));
+        summary.controller_stop = sim.controller_stop().map(|(t_s, why)| crate::metrics::ControllerStopReport {
+            t_s,
+            cause: why.cause,
+            message: why.message.clone(),
+        });
         summary.engine =
             sc.leg().map(|l| if l.reduced.is_some() || l.walker.is_some() { "reduced" } else { "rapier" }.to_string());
         (summary.hydraulic_substeps_max, summary.substepped_steps) = sim.substep_stats();

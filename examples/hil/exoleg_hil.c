@@ -84,11 +84,23 @@ static int send_ready(Peer *p, int32_t status, const char *message) {
     return send(p->fd, b, sizeof b, 0) == (ssize_t)sizeof b ? 0 : fail(p, "send READY: %s", strerror(errno));
 }
 
-/* The next datagram (its length), or -1 after timeout_s. */
+/* The next datagram (its length), or -1 after timeout_s. A receive interrupted by a stop and
+ * continue of this process (Ctrl-Z, a debugger: EINTR) is retried with the time left. */
 static ssize_t receive(Peer *p, double timeout_s) {
-    struct timeval tv = {(time_t)timeout_s, (suseconds_t)((timeout_s - (double)(time_t)timeout_s) * 1e6)};
-    setsockopt(p->fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    return recv(p->fd, p->in, sizeof p->in, 0);
+    uint64_t end = now_ns() + (uint64_t)(timeout_s * 1e9);
+    for (;;) {
+        uint64_t now = now_ns();
+        double left = now < end ? (double)(end - now) * 1e-9 : 1e-6;
+        struct timeval tv = {(time_t)left, (suseconds_t)((left - (double)(time_t)left) * 1e6)};
+        if (tv.tv_sec == 0 && tv.tv_usec == 0) tv.tv_usec = 1;
+        setsockopt(p->fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+        ssize_t r = recv(p->fd, p->in, sizeof p->in, 0);
+        if (r >= 0 || errno != EINTR) return r;
+        if (now_ns() >= end) {
+            errno = EAGAIN;
+            return -1;
+        }
+    }
 }
 
 /* The header of the datagram in p->in (type, seq, time), 0 if it is one of ours. */

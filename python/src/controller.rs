@@ -49,7 +49,7 @@ impl PyController {
         }
         let msg = format!("the Python controller raised at t = {t:.6} s: {e}");
         *self.error.lock().unwrap_or_else(|p| p.into_inner()) = Some(e);
-        ControlStop { message: msg }
+        ControlStop::crash(msg)
     }
 
     /// Keep the logged values; the names are fixed by the first sample.
@@ -94,7 +94,8 @@ impl DiscreteController for PyController {
                 .map_err(|m| self.fail(py, s.t_s, ControllerError::new_err(m)))?;
             if !cmd.valve_command.is_finite() {
                 let m = format!("it returned the valve command {}", cmd.valve_command);
-                return Err(self.fail(py, s.t_s, ControllerError::new_err(m)));
+                let e = self.fail(py, s.t_s, ControllerError::new_err(m.clone()));
+                return Err(ControlStop::command(e.message));
             }
             Ok(cmd)
         })

@@ -256,7 +256,30 @@ impl SampleInput {
 pub struct ControlStop {
     /// What the controller said.
     pub message: String,
+    /// A deliberate stop, a command that is not a number, or a failure (crash, exception).
+    pub cause: StopCause,
 }
+
+impl ControlStop {
+    /// The controller stops on purpose (a plugin's stop status, your controller's own check):
+    /// under `controller.on_stop = "failsafe"` a fault campaign counts it as a detection.
+    pub fn stop(message: impl Into<String>) -> Self {
+        Self { message: message.into(), cause: StopCause::Stop }
+    }
+
+    /// The controller failed (a crash, an `exit()`, a hang, a broken protocol or link, an
+    /// exception): never a detection.
+    pub fn crash(message: impl Into<String>) -> Self {
+        Self { message: message.into(), cause: StopCause::Crash }
+    }
+
+    /// The controller's command is not a number.
+    pub fn command(message: impl Into<String>) -> Self {
+        Self { message: message.into(), cause: StopCause::Command }
+    }
+}
+
+pub use crate::faults::StopCause;
 
 /// A controller that runs once per sample period on the readings and holds its output
 /// (zero-order hold): the built-in firmware controllers, and every controller from outside the

@@ -29,6 +29,7 @@ mod params;
 pub mod plugin;
 mod sampled;
 pub mod timing;
+pub mod wait;
 pub mod wire;
 mod znn;
 
@@ -351,8 +352,8 @@ impl ControllerSetup {
     pub fn discrete(&self, nominal: NominalModel, limit: ValveLimit) -> Result<Box<dyn DiscreteController>, String> {
         Ok(match self {
             ControllerSetup::Dtznn(d) => Box::new((**d).clone()),
-            ControllerSetup::Plugin(p) => match p.isolate_timeout_s() {
-                Some(timeout_s) => Box::new(isolate::IsolatedPlugin::spawn(p.clone(), timeout_s)?),
+            ControllerSetup::Plugin(p) => match p.isolation() {
+                Some(limits) => Box::new(isolate::IsolatedPlugin::spawn(p.clone(), limits)?),
                 None => Box::new(p.instance()?),
             },
             _ => Box::new(Sampled::new(self.continuous(nominal), limit)),

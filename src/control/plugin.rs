@@ -75,6 +75,16 @@ pub const PLUGIN_LOG_LEN: usize = 8;
 pub const MESSAGE_LEN: usize = 160;
 /// Most parameters a plugin may be given.
 pub const MAX_PARAMS: usize = 256;
+/// Most bytes of one datagram of the out-of-process protocol (`super::wire`, which re-exports
+/// the sizes here): every route checks that a plugin's SETUP fits it.
+pub const MAX_DATAGRAM: usize = 32 * 1024;
+/// Longest parameter name (bytes): `controller.plugin.params` refuses a longer one on every
+/// route, so no name is ever cut on the wire.
+pub const MAX_NAME_LEN: usize = 255;
+/// Bytes of the wire's SETUP payload before its parameters.
+pub const SETUP_FIXED_LEN: usize = 80;
+/// Bytes of the wire's header.
+pub const WIRE_HEADER_LEN: usize = 24;
 /// Status: the sample is fine.
 pub const STATUS_OK: i32 = 0;
 /// Status: the sample is usable but the plugin warns (counted; the last message is kept).
@@ -100,8 +110,13 @@ pub struct PluginParams {
     /// ends only this run (exit 3 naming the signal or the timeout). Default false.
     pub isolate: bool,
     /// Isolated plugins: the longest wall-clock time one call may take (s) before the child
-    /// is killed and the run ends (exit 3). Default 1. > 0, finite.
+    /// is killed and the run ends (exit 3). Default 1. In (0, 3600].
     pub timeout_s: f64,
+    /// Isolated plugins: the child's address-space limit (MiB; `RLIMIT_AS`), so a plugin that
+    /// leaks costs only its own run (its allocation fails, or it is killed). None (default):
+    /// no limit. 16..=1048576, on top of what the child holds when it starts (its own executable).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub memory_mb: Option<u64>,
 }
 
 impl Default for PluginParams {
@@ -113,17 +128,69 @@ impl Default for PluginParams {
             library_sha256: None,
             isolate: false,
             timeout_s: DEFAULT_TIMEOUT_S,
+            memory_mb: None,
         }
     }
 }
 
 /// Default of `controller.plugin.timeout_s` (s).
 pub const DEFAULT_TIMEOUT_S: f64 = 1.0;
+/// Largest `controller.plugin.timeout_s` (s): an hour for one call.
+pub const MAX_TIMEOUT_S: f64 = 3600.0;
+/// `controller.plugin.memory_mb`'s range (MiB).
+pub const MEMORY_MB_RANGE: (u64, u64) = (16, 1 << 20);
 
 impl PluginParams {
     /// True when nothing is set (the section is left out of `summary.json`).
     pub fn is_unset(&self) -> bool {
         *self == Self::default()
+    }
+
+    /// Everything `[controller.plugin]` holds that any route (in-process, isolated, `exoleg
+    /// hil`) gives the controller, checked once before anything starts, the same for every
+    /// route: the parameters (numbers, names that the wire carries whole, a SETUP that fits
+    /// one datagram), the logged channels' names, the timeout and the memory limit. Errors
+    /// name the key.
+    pub fn check(&self) -> Result<(), (String, String)> {
+        let params = self.numbers()?;
+        let setup: usize = params.iter().map(|(n, _)| 2 + n.as_bytes().len() + 8).sum();
+        let bytes = WIRE_HEADER_LEN + SETUP_FIXED_LEN + setup;
+        if bytes > MAX_DATAGRAM {
+            return Err((
+                "controller.plugin.params".into(),
+                format!(
+                    "{} parameters whose names and values take {bytes} bytes on the wire, more than one datagram \
+                     carries ({}): shorten the names or give fewer",
+                    params.len(),
+                    MAX_DATAGRAM
+                ),
+            ));
+        }
+        if self.log.len() > PLUGIN_LOG_LEN {
+            return Err((
+                "controller.plugin.log".into(),
+                format!("at most {PLUGIN_LOG_LEN} names, got {}", self.log.len()),
+            ));
+        }
+        crate::record::check_log_names(&self.log).map_err(|m| ("controller.plugin.log".to_string(), m))?;
+        let t = self.timeout_s;
+        if !(t > 0.0 && t <= MAX_TIMEOUT_S) {
+            return Err((
+                "controller.plugin.timeout_s".into(),
+                format!("must be in (0, {MAX_TIMEOUT_S}] s, got {}", crate::error::num(t)),
+            ));
+        }
+        let (lo, hi) = MEMORY_MB_RANGE;
+        if let Some(m) = self.memory_mb.filter(|m| !(lo..=hi).contains(m)) {
+            return Err(("controller.plugin.memory_mb".into(), format!("must be {lo}..={hi} MiB, got {m}")));
+        }
+        if self.memory_mb.is_some() && !self.isolate {
+            return Err((
+                "controller.plugin.memory_mb".into(),
+                "limits an isolated plugin's child process: set controller.plugin.isolate = true".into(),
+            ));
+        }
+        Ok(())
     }
 
     /// The parameters as (name, number) pairs; errors name the key.
@@ -142,6 +209,10 @@ impl PluginParams {
                 };
                 if !x.is_finite() {
                     return Err((key, format!("must be a finite number, got {x}")));
+                }
+                if k.is_empty() || k.len() > MAX_NAME_LEN {
+                    let n = k.len();
+                    return Err((key, format!("a name of 1..={MAX_NAME_LEN} bytes, got {n}")));
                 }
                 let name = CString::new(k.as_str()).map_err(|_| (key, "the name contains a NUL byte".to_string()))?;
                 Ok((name, x))
@@ -517,19 +588,26 @@ pub struct PluginSetup {
     params: Vec<(CString, f64)>,
     log: Vec<String>,
     info: HostInfo,
-    /// `controller.plugin.isolate`: the longest call (s) of an isolated instance; None in-process.
-    isolate_timeout_s: Option<f64>,
+    /// `controller.plugin.isolate`: how an isolated instance runs; None in-process.
+    isolate: Option<Isolation>,
+}
+
+/// An isolated plugin's limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Isolation {
+    /// The longest call (s): `controller.plugin.timeout_s`.
+    pub timeout_s: f64,
+    /// The child's address-space limit (MiB): `controller.plugin.memory_mb`.
+    pub memory_mb: Option<u64>,
 }
 
 impl PluginSetup {
     /// Check the parameters and log names of `p` for `lib`; errors name the key.
     pub fn new(lib: Arc<PluginLibrary>, p: &PluginParams, info: HostInfo) -> Result<Self, (String, String)> {
+        p.check()?;
         let params = p.numbers()?;
-        if p.log.len() > PLUGIN_LOG_LEN {
-            return Err(("controller.plugin.log".into(), format!("at most {PLUGIN_LOG_LEN} names")));
-        }
-        let isolate_timeout_s = p.isolate.then_some(p.timeout_s);
-        Ok(Self { lib, params, log: p.log.clone(), info, isolate_timeout_s })
+        let isolate = p.isolate.then_some(Isolation { timeout_s: p.timeout_s, memory_mb: p.memory_mb });
+        Ok(Self { lib, params, log: p.log.clone(), info, isolate })
     }
 
     /// The library.
@@ -554,10 +632,10 @@ impl PluginSetup {
         }
     }
 
-    /// `controller.plugin.isolate`: the longest call (s) of an isolated instance, None when the
-    /// plugin runs in-process.
-    pub fn isolate_timeout_s(&self) -> Option<f64> {
-        self.isolate_timeout_s
+    /// `controller.plugin.isolate`: an isolated instance's limits, None when the plugin runs
+    /// in-process.
+    pub fn isolation(&self) -> Option<Isolation> {
+        self.isolate
     }
 
     /// A new in-process instance (`exoleg_create`); an error if the plugin refuses its
@@ -646,12 +724,14 @@ impl StatusCount {
                 self.last_warning = Some(message());
                 Ok(())
             }
-            STATUS_STOP => Err(ControlStop {
-                message: format!("plugin {} stopped the run in {call} (status 2): {}", self.name, message()),
-            }),
-            other => Err(ControlStop {
-                message: format!("plugin {} returned the unknown status {other} from {call}", self.name),
-            }),
+            STATUS_STOP => Err(ControlStop::stop(format!(
+                "plugin {} stopped the run in {call} (status 2): {}",
+                self.name,
+                message()
+            ))),
+            other => {
+                Err(ControlStop::crash(format!("plugin {} returned the unknown status {other} from {call}", self.name)))
+            }
         }
     }
 }
@@ -782,7 +862,7 @@ unsafe impl Send for PluginController {}
 pub(crate) fn output_of(name: &str, c: &ExolegCommand, status: i32) -> Result<ControlOutput, ControlStop> {
     let u = c.valve_command;
     if !u.is_finite() {
-        return Err(ControlStop { message: format!("plugin {name} returned the valve command {u} (status {status})") });
+        return Err(ControlStop::command(format!("plugin {name} returned the valve command {u} (status {status})")));
     }
     Ok(ControlOutput {
         valve_command: u,

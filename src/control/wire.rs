@@ -13,8 +13,9 @@
 //!                           n_params x {name_len u16, name bytes (UTF-8), value f64}
 //! peer  -> plant  READY     status i32 (0 created, 2 refused), reserved u32, message [160]
 //! plant -> peer   READINGS  the ABI's ExolegReadings (its bytes, `size` first)
-//! peer  -> plant  COMMAND   status i32, call u32 (0 step, 1 reset), compute_ns u64, the ABI's
-//!                           ExolegCommand
+//! peer  -> plant  COMMAND   status i32, call u32 (0 step, 1 reset: its own COMMAND before the
+//!                           first step's, or instead of it when not ok), compute_ns u64, the
+//!                           ABI's ExolegCommand
 //! plant -> peer   BYE       status i32, reserved u32, message [160] (the run is over)
 //! plant -> peer   REFUSE    status i32, reserved u32, message [160] (the HELLO is refused)
 //! ```
@@ -25,6 +26,8 @@
 pub use super::plugin::InstanceSetup as Setup;
 use super::plugin::{ExolegCommand, ExolegReadings, ABI_MAJOR, ABI_MINOR, MESSAGE_LEN};
 
+const _: () = assert!(HEADER_LEN == super::plugin::WIRE_HEADER_LEN);
+
 #[cfg(target_endian = "big")]
 compile_error!("the wire protocol copies the ABI structs as they are in memory: little-endian hosts only");
 
@@ -34,11 +37,7 @@ pub const MAGIC: u32 = 0x4C4F_5845;
 pub const VERSION: u16 = 1;
 /// Bytes of the header.
 pub const HEADER_LEN: usize = 24;
-/// Most bytes of one datagram this protocol sends or accepts (a SETUP with 256 parameters of
-/// long names fits; a UDP datagram on localhost carries it).
-pub const MAX_DATAGRAM: usize = 32 * 1024;
-/// Longest parameter name on the wire (bytes).
-pub const MAX_NAME_LEN: usize = 255;
+pub use super::plugin::{MAX_DATAGRAM, MAX_NAME_LEN, SETUP_FIXED_LEN};
 
 /// Message types (the header's `type`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -137,8 +136,9 @@ pub enum Message {
     Command {
         /// The plugin's status for the call.
         status: i32,
-        /// The call the status is from: [`CALL_STEP`] or [`CALL_RESET`] (a reset that did not
-        /// return ok; the step was not called).
+        /// The call the status is from: [`CALL_STEP`] or [`CALL_RESET`] (the first sample's
+        /// `exoleg_reset`: the isolated plugin's host sends its status in a COMMAND of its own
+        /// before the step's; a peer may send it only when it is not ok).
         call: u32,
         /// Wall time of the step call as the peer measured it (ns).
         compute_ns: u64,
@@ -161,7 +161,8 @@ pub enum Message {
 
 /// [`Message::Command`]'s `call`: the status is `exoleg_step`'s.
 pub const CALL_STEP: u32 = 0;
-/// [`Message::Command`]'s `call`: the status is `exoleg_reset`'s (not ok; no step was made).
+/// [`Message::Command`]'s `call`: the status is `exoleg_reset`'s (a stop or an unknown status:
+/// no step follows; ok or a warning: the step's COMMAND follows).
 pub const CALL_RESET: u32 = 1;
 
 /// Bytes of a READINGS payload.

@@ -24,6 +24,11 @@ pub struct Counts {
     pub unexpected: usize,
     /// READINGS sent again because no answer came (lockstep).
     pub resent: usize,
+    /// Datagrams from anyone but the peer (or, before the handshake, from an address
+    /// `--allow-from` does not allow): dropped unread.
+    pub strangers: usize,
+    /// Pauses of this process (a stop and continue) the link waited through.
+    pub pauses: usize,
 }
 
 /// One datagram as the run sees it.
@@ -39,26 +44,75 @@ pub struct Link {
     sock: UdpSocket,
     /// The peer (after its HELLO).
     pub peer: Option<SocketAddr>,
+    /// Who may say HELLO (`--allow-from`; empty: anyone).
+    allow: Vec<Allowed>,
     buf: Vec<u8>,
     out: Vec<u8>,
     /// What was counted.
     pub counts: Counts,
+    /// The last wait spanned a pause of this process (taken by [`Self::take_pause`]).
+    paused: bool,
+}
+
+/// An address `--allow-from` lets say HELLO: an IP (any port) or an IP and port.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Allowed {
+    /// Any port of this address.
+    Ip(std::net::IpAddr),
+    /// This address and port.
+    Addr(SocketAddr),
+}
+
+impl Allowed {
+    /// Parse `ADDR` or `ADDR:PORT` (`[v6]:PORT`).
+    pub fn parse(s: &str) -> Result<Self, String> {
+        if let Ok(a) = s.parse::<SocketAddr>() {
+            return Ok(Allowed::Addr(a));
+        }
+        s.parse::<std::net::IpAddr>()
+            .map(Allowed::Ip)
+            .map_err(|_| format!("`{s}`: give an IP address (any port) or ADDR:PORT"))
+    }
+
+    fn admits(&self, from: SocketAddr) -> bool {
+        match self {
+            Allowed::Ip(ip) => from.ip() == *ip,
+            Allowed::Addr(a) => from == *a,
+        }
+    }
 }
 
 /// Why the link failed.
 pub type LinkError = String;
 
 impl Link {
-    /// Bind `listen` (ADDR:PORT).
-    pub fn bind(listen: &str) -> Result<Self, LinkError> {
+    /// Bind `listen` (ADDR:PORT); only `allow` may say HELLO (empty: anyone).
+    pub fn bind(listen: &str, allow: Vec<Allowed>) -> Result<Self, LinkError> {
         let sock = UdpSocket::bind(listen).map_err(|e| format!("cannot listen on {listen}: {e}"))?;
         Ok(Self {
             sock,
             peer: None,
+            allow,
             buf: vec![0; wire::MAX_DATAGRAM + 1],
             out: Vec::with_capacity(wire::HEADER_LEN + wire::READINGS_LEN),
             counts: Counts::default(),
+            paused: false,
         })
+    }
+
+    /// Whether a wait since the last call spanned a pause of this process (a stop and
+    /// continue): the callers' timers restart.
+    pub fn take_pause(&mut self) -> bool {
+        std::mem::take(&mut self.paused)
+    }
+
+    /// Whether a datagram from `from` is the run's: the peer's, or before the handshake one
+    /// `--allow-from` allows.
+    fn admits(&self, from: SocketAddr) -> bool {
+        match self.peer {
+            Some(p) => from == p,
+            None => self.allow.is_empty() || self.allow.iter().any(|a| a.admits(from)),
+        }
     }
 
     /// The address bound (the port chosen when `listen` asked for port 0).
@@ -86,21 +140,40 @@ impl Link {
         }
     }
 
-    /// The next datagram that decodes, waiting up to `limit`; malformed ones are counted and
-    /// skipped. From: the peer's address (before the handshake: anyone's).
+    /// The next datagram from the peer that decodes, waiting up to `limit` (at least one read,
+    /// however little is left); malformed ones are counted and skipped, and every datagram
+    /// not from the peer (before the handshake: not from an allowed address) is dropped
+    /// unread and counted, whenever it came (one queued before the handshake too). A wait
+    /// that spans a pause of this process is retried and remembered ([`Self::take_pause`]).
     pub fn receive(&mut self, limit: Duration) -> Result<(Received, Option<SocketAddr>), LinkError> {
         let t0 = Instant::now();
+        let mut first = true;
         loop {
             let left = limit.saturating_sub(t0.elapsed());
-            if left.is_zero() {
+            if left.is_zero() && !first {
                 return Ok((Received::Timeout, None));
             }
-            self.sock.set_read_timeout(Some(left.max(Duration::from_micros(10)))).map_err(|e| self.gone(e))?;
-            let (n, from) = match self.sock.recv_from(&mut self.buf) {
+            first = false;
+            let asked = left.max(Duration::from_micros(10));
+            self.sock.set_read_timeout(Some(asked)).map_err(|e| self.gone(e))?;
+            let started = Instant::now();
+            let got = self.sock.recv_from(&mut self.buf);
+            let interrupted = matches!(&got, Err(e) if e.kind() == ErrorKind::Interrupted);
+            if crate::control::wait::was_paused(started, asked, interrupted) {
+                self.paused = true;
+                self.counts.pauses += 1;
+            }
+            let (n, from) = match got {
                 Ok(x) => x,
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => continue,
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted) => {
+                    continue
+                }
                 Err(e) => return Err(self.gone(e)),
             };
+            if !self.admits(from) {
+                self.counts.strangers += 1;
+                continue;
+            }
             match wire::decode(&self.buf[..n]) {
                 Ok((h, m)) => return Ok((Received::Message(h, m), Some(from))),
                 Err(e) => {
@@ -128,11 +201,15 @@ impl Link {
     /// `wait` for READY. A HELLO of another ABI major or channel table is refused (the peer is
     /// told why) and ends the run.
     pub fn handshake(&mut self, setup: &Setup, wait: Duration) -> Result<(), LinkError> {
-        let t0 = Instant::now();
-        let left = |t0: Instant| wait.saturating_sub(t0.elapsed());
+        let mut deadline = crate::control::wait::Deadline::new(wait);
         let peer = loop {
-            match self.receive(left(t0))? {
-                (Received::Timeout, _) => return Err(self.no_peer(wait)),
+            let got = self.receive(deadline.left())?;
+            if self.take_pause() {
+                deadline.restart();
+            }
+            match got {
+                (Received::Timeout, _) if deadline.passed() => return Err(self.no_peer(wait)),
+                (Received::Timeout, _) => {}
                 (Received::Message(_, Message::Hello { abi_version, channel_hash }), Some(from)) => {
                     self.check_hello(from, abi_version, channel_hash)?;
                     break from;
@@ -145,7 +222,12 @@ impl Link {
         let h = Header { kind: MsgType::Setup, seq: 0, sim_time_ns: 0 };
         self.send(&h, &Message::Setup(setup.clone()))?;
         loop {
-            match self.receive(left(t0))?.0 {
+            let got = self.receive(deadline.left())?.0;
+            if self.take_pause() {
+                deadline.restart();
+            }
+            match got {
+                Received::Timeout if !deadline.passed() => {}
                 Received::Timeout => {
                     return Err(format!("the peer at {peer} sent no READY in {} s", wait.as_secs_f64()))
                 }

@@ -17,6 +17,10 @@
 //!
 //! Every datagram that does not decode is counted and ignored; a peer whose HELLO has another
 //! ABI major, protocol version or channel table is refused and the run ends (exit 3).
+//!
+//! The protocol is unauthenticated: whoever reaches the port first with a HELLO (of an
+//! address `--allow-from` allows) is the peer; from then on every datagram from anyone else is
+//! dropped unread and counted (`strangers`), one queued before the handshake too.
 
 pub mod link;
 
@@ -60,6 +64,32 @@ pub struct HilOptions {
     pub resend_s: f64,
     /// Realtime: the command of a missed sample.
     pub on_miss: OnMiss,
+    /// Who may say HELLO (`--allow-from`; empty: anyone who reaches the port).
+    pub allow_from: Vec<link::Allowed>,
+}
+
+/// `--wait-s`' and `--stall-timeout-s`' range (s): up to a day.
+pub const WAIT_RANGE_S: (f64, f64) = (1e-3, 86_400.0);
+/// `--resend-s`' range (s): at least a millisecond (a faster resend floods the peer without
+/// giving its answer time to come), at most a minute.
+pub const RESEND_RANGE_S: (f64, f64) = (1e-3, 60.0);
+
+impl HilOptions {
+    /// Every duration within its range: an error naming the flag.
+    pub fn check(&self) -> Result<(), (String, String)> {
+        let flags = [
+            ("--wait-s", self.wait_s, WAIT_RANGE_S),
+            ("--stall-timeout-s", self.stall_timeout_s, WAIT_RANGE_S),
+            ("--resend-s", self.resend_s, RESEND_RANGE_S),
+        ];
+        for (flag, v, (lo, hi)) in flags {
+            if !(lo..=hi).contains(&v) {
+                let v = crate::error::num(v);
+                return Err((flag.into(), format!("must be in {lo}..={hi} s, got {v}")));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The peer as the loop's controller.
@@ -79,19 +109,29 @@ pub struct HilController {
     last_valid: Instant,
     missed: usize,
     plant_overruns: usize,
+    /// The peer's `exoleg_reset` status has come (its own COMMAND, or the first step's).
+    reset_done: bool,
+    /// COMMANDs whose reported compute time was longer than their round trip (taken as the
+    /// round trip: a peer cannot compute longer than the plant waited).
+    compute_clamped: usize,
 }
 
 impl HilController {
     /// Listen, wait for the peer's HELLO and READY: the controller of a run (errors say what
     /// went wrong: nobody came, a refused HELLO, a refused instance).
     pub fn connect(setup: &InstanceSetup, log_names: Vec<String>, opts: HilOptions) -> Result<Self, String> {
-        let link = Link::bind(&opts.listen)?;
+        let link = Link::bind(&opts.listen, opts.allow_from.clone())?;
         Self::on_link(link, setup, log_names, opts)
     }
 
     /// Bind first (to print the address), then [`Self::on_link`].
-    pub fn bind(listen: &str) -> Result<Link, String> {
-        Link::bind(listen)
+    pub fn bind(opts: &HilOptions) -> Result<Link, String> {
+        Link::bind(&opts.listen, opts.allow_from.clone())
+    }
+
+    /// The peer that drives the run, for reports ("HIL peer ADDR:PORT").
+    pub fn peer_name(&self) -> String {
+        self.status.name.clone()
     }
 
     /// The handshake on a bound link.
@@ -117,11 +157,13 @@ impl HilController {
             last_valid: Instant::now(),
             missed: 0,
             plant_overruns: 0,
+            reset_done: false,
+            compute_clamped: 0,
         })
     }
 
     fn stop(&self, seq: u64, t_s: f64, why: String) -> ControlStop {
-        ControlStop { message: format!("{} at sample {seq} (t = {t_s:.6} s): {why}", self.status.name) }
+        ControlStop::crash(format!("{} at sample {seq} (t = {t_s:.6} s): {why}", self.status.name))
     }
 
     fn send_readings(&mut self, s: &SampleInput, seq: u64) -> Result<(), ControlStop> {
@@ -130,44 +172,77 @@ impl HilController {
         self.link.send(&h, &Message::Readings(Box::new(r))).map_err(|e| self.stop(seq, s.t_s, e))
     }
 
-    /// Take a COMMAND for `seq` (its status and figures); the output.
+    /// Take a COMMAND for the current sample, which left `round_trip` ago: a reset's status
+    /// (None: the step's COMMAND is still to come), or the step's output. The compute time it
+    /// reports is at most the round trip.
     fn accept(
         &mut self,
         status: i32,
         call: u32,
         compute_ns: u64,
         command: ExolegCommand,
-    ) -> Result<ControlOutput, ControlStop> {
+        round_trip: Duration,
+    ) -> Result<Option<ControlOutput>, ControlStop> {
         self.command = command;
-        self.compute_s.push(compute_ns as f64 * 1e-9);
         self.last_valid = Instant::now();
-        let call = if call == wire::CALL_RESET { "exoleg_reset" } else { "exoleg_step" };
-        self.status.take(call, status, || message_text(&command.message))?;
-        output_of(&self.status.name, &self.command, status)
+        if call == wire::CALL_RESET {
+            // The reset's own COMMAND (a peer may send it, whatever its status, before the
+            // step's): taken as in-process, a warning counted, a stop the end.
+            self.reset_done = true;
+            self.status.take("exoleg_reset", status, || message_text(&command.message))?;
+            return Ok(None);
+        }
+        self.reset_done = true;
+        let rt = round_trip.as_secs_f64();
+        let compute = compute_ns as f64 * 1e-9;
+        self.compute_clamped += usize::from(compute > rt);
+        self.compute_s.push(compute.min(rt));
+        self.round_trip_s.push(rt);
+        self.status.take("exoleg_step", status, || message_text(&command.message))?;
+        output_of(&self.status.name, &self.command, status).map(Some)
     }
 
-    /// Lockstep: send, wait (resending) for this sample's COMMAND.
+    /// Lockstep: send, wait (resending) for this sample's COMMAND. Both timers run from what
+    /// the run did, whatever else arrives: the resend from the last READINGS sent, the stall
+    /// watchdog from the last valid COMMAND (a peer repeating its last COMMAND, or saying
+    /// HELLO, stops neither); a pause of this process restarts both.
     fn lockstep(&mut self, s: &SampleInput, seq: u64) -> Result<ControlOutput, ControlStop> {
         let t0 = Instant::now();
         self.send_readings(s, seq)?;
         let resend = Duration::from_secs_f64(self.opts.resend_s);
+        let stall = Duration::from_secs_f64(self.opts.stall_timeout_s);
+        let mut sent_at = t0;
         loop {
-            let got = self.link.receive(resend).map_err(|e| self.stop(seq, s.t_s, e))?.0;
+            let next = (sent_at + resend).min(self.last_valid + stall);
+            let wait = next.saturating_duration_since(Instant::now());
+            let got = self.link.receive(wait).map_err(|e| self.stop(seq, s.t_s, e))?.0;
+            if self.link.take_pause() {
+                (sent_at, self.last_valid) = (Instant::now(), Instant::now());
+            }
             match got {
                 Received::Message(h, Message::Command { status, call, compute_ns, command }) if h.seq == seq => {
-                    self.round_trip_s.push(t0.elapsed().as_secs_f64());
-                    return self.accept(status, call, compute_ns, *command);
+                    let answered = call == wire::CALL_STEP || !self.reset_done;
+                    if answered {
+                        if let Some(out) = self.accept(status, call, compute_ns, *command, t0.elapsed())? {
+                            return Ok(out);
+                        }
+                        continue;
+                    }
+                    self.link.counts.duplicated += 1;
                 }
                 Received::Message(h, Message::Command { .. }) if h.seq < seq => self.link.counts.duplicated += 1,
                 Received::Message(_, Message::Command { .. }) => self.link.counts.out_of_order += 1,
                 Received::Message(..) => self.link.counts.unexpected += 1,
-                Received::Timeout => {
-                    if self.last_valid.elapsed().as_secs_f64() > self.opts.stall_timeout_s {
-                        return Err(self.stalled(seq, s.t_s));
-                    }
-                    self.link.counts.resent += 1;
-                    self.send_readings(s, seq)?;
-                }
+                Received::Timeout => {}
+            }
+            let now = Instant::now();
+            if now >= self.last_valid + stall {
+                return Err(self.stalled(seq, s.t_s));
+            }
+            if now >= sent_at + resend {
+                self.link.counts.resent += 1;
+                self.send_readings(s, seq)?;
+                sent_at = Instant::now();
             }
         }
     }
@@ -208,17 +283,29 @@ impl HilController {
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             let got = self.link.receive(left).map_err(|e| self.stop(seq, s.t_s, e))?.0;
+            if self.link.take_pause() {
+                // Stopped and continued: the peer's silence while this process slept is no stall.
+                self.last_valid = Instant::now();
+            }
             match got {
                 Received::Message(h, Message::Command { status, call, compute_ns, command }) => {
                     let k = h.seq as usize;
                     match self.sent.get_mut(k) {
                         Some((_, true)) => self.link.counts.duplicated += 1,
+                        Some((at, _)) if k == i && call == wire::CALL_RESET && !self.reset_done => {
+                            let rt = at.elapsed();
+                            self.accept(status, call, compute_ns, *command, rt)?;
+                        }
+                        Some((at, answered)) if k == i => {
+                            *answered = true;
+                            let rt = at.elapsed();
+                            if let Some(out) = self.accept(status, call, compute_ns, *command, rt)? {
+                                return Ok(out);
+                            }
+                        }
                         Some((at, answered)) => {
                             *answered = true;
                             self.round_trip_s.push(at.elapsed().as_secs_f64());
-                            if k == i {
-                                return self.accept(status, call, compute_ns, *command);
-                            }
                             self.link.counts.late += 1;
                         }
                         None => self.link.counts.out_of_order += 1,
@@ -310,6 +397,9 @@ impl DiscreteController for HilController {
             "malformed": c.malformed,
             "unexpected": c.unexpected,
             "resent": c.resent,
+            "strangers": c.strangers,
+            "pauses": c.pauses,
+            "compute_clamped": self.compute_clamped,
             "missed_deadlines": self.missed,
             "on_miss": if self.opts.on_miss == OnMiss::Hold { "hold" } else { "zero" },
             "pacing_jitter": TimingStats::of(&self.jitter_s),

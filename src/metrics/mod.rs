@@ -173,6 +173,10 @@ pub struct Summary {
     /// Samples a controller flagged with a warning (a C plugin's warning status), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub controller_warnings: Option<ControllerWarnings>,
+    /// When and why the controller stopped under `controller.on_stop = "failsafe"` (the
+    /// device went to its fail-safe state and the run went on), if it did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller_stop: Option<ControllerStopReport>,
     /// Wall time of the controller's computations, measured (a C plugin's `exoleg_step`
     /// calls, in-process or isolated; a HIL peer's own figure): `samples`, `p50_s`, `p99_s`,
     /// `max_s`, `mean_s` (s). Measured, so it differs from run to run; never in the physics,
@@ -198,6 +202,33 @@ pub struct Summary {
     /// Ground-contact figures (runs with `ground.enabled`), flattened into the summary.
     #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
     pub contact: Option<ContactSummary>,
+}
+
+/// A sampled controller's stop under `controller.on_stop = "failsafe"` (`summary.json`
+/// `controller_stop`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ControllerStopReport {
+    /// When (s).
+    pub t_s: f64,
+    /// `stop` (on purpose: a stop status), `command` (not a number) or `crash` (a signal, an
+    /// exit, a hang, a broken link, an exception: the run does not pass).
+    pub cause: crate::faults::StopCause,
+    /// What the controller, or exoleg about it, said.
+    pub message: String,
+}
+
+impl Summary {
+    /// Why the run's controller crashed, if it did (under `controller.on_stop = "failsafe"`
+    /// the run goes on, and does not pass).
+    pub fn controller_crash(&self) -> Option<String> {
+        let s = self.controller_stop.as_ref().filter(|s| s.cause == crate::faults::StopCause::Crash)?;
+        Some(format!("the controller crashed at t = {:.6} s: {}", s.t_s, s.message))
+    }
+
+    /// The run's verdict: every criterion passed and its controller did not crash.
+    pub fn passes(&self, criteria: &[CriterionResult]) -> bool {
+        criteria.iter().all(|c| c.pass) && self.controller_crash().is_none()
+    }
 }
 
 /// The warnings a sampled controller gave during a run.
@@ -229,6 +260,7 @@ impl Summary {
             ("peak_power_w", self.peak_power_w),
             ("force_convergence_time_s", self.force_convergence_time_s.unwrap_or(0.0)),
             ("loop_closure_max_gap_m", self.loop_closure_max_gap_m.unwrap_or(0.0)),
+            ("controller_stop.t_s", self.controller_stop.as_ref().map_or(0.0, |c| c.t_s)),
         ];
         for (name, v) in non_negative {
             // NaN: a figure the run does not have (no desired force).
@@ -590,6 +622,7 @@ impl SummaryBuilder {
             wearer: None,
             safety: None,
             controller_warnings: None,
+            controller_stop: None,
             controller_compute: None,
             compute_model: None,
             controller_link: None,

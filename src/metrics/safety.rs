@@ -11,8 +11,9 @@
 //!   infinite kick.
 //! - Safe state: the device's knee moment below `safe_moment_nm` in magnitude for at least
 //!   `safe_hold_s`; its time is the first instant after the fault's onset from which it holds.
-//! - Detection: the controller's stop (`controller.on_stop = "failsafe"`), or its logged channel
-//!   `fault_detected` reaching 0.5, at or after the onset.
+//! - Detection: the controller's stop (`controller.on_stop = "failsafe"`: a stop status or a
+//!   command that is not a number; never a crash or an exception), or its logged channel
+//!   `fault_detected` reaching 0.5, at or after the onset (the injected fault's).
 
 use crate::error::Result;
 use crate::record::{Layout, RecordSink, Row};
@@ -213,14 +214,17 @@ impl SafetyMetrics {
         }
     }
 
-    /// The figures, with the controller's stop time (s) if it stopped.
-    pub fn finish(&self, controller_stop_s: Option<f64>) -> SafetySummary {
+    /// The figures, with the controller's stop (its time, s, and cause) if it stopped: a
+    /// crash is never a detection.
+    pub fn finish(&self, controller_stop: Option<(f64, crate::faults::StopCause)>) -> SafetySummary {
+        let controller_stop_s = controller_stop.map(|(t, _)| t);
+        let detecting_stop = controller_stop.filter(|(_, c)| c.detects()).map(|(t, _)| t);
         let l = &self.setup.limits;
         let urdf = [self.setup.urdf_knee_rad.0.to_degrees(), self.setup.urdf_knee_rad.1.to_degrees()];
         let accel_limit = l.max_knee_accel_rad_s2.or(self.setup.data.map(|(_, a)| 2.0 * a));
         let jerk_limit = l.max_knee_jerk_rad_s3;
         let onset = self.onset;
-        let detected = match (self.detected, controller_stop_s.filter(|s| onset.is_some_and(|o| *s >= o))) {
+        let detected = match (self.detected, detecting_stop.filter(|s| onset.is_some_and(|o| *s >= o))) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         };

@@ -90,8 +90,11 @@ impl MuscleSetup {
                 max_velocity_lopt_per_s: m.params.max_contraction_velocity_lopt_per_s,
             })
             .collect();
-        let heights_m =
-            set.muscles.iter().map(|m| m.params.optimal_fiber_length_m * m.params.pennation_at_optimal_rad.sin()).collect();
+        let heights_m = set
+            .muscles
+            .iter()
+            .map(|m| m.params.optimal_fiber_length_m * m.params.pennation_at_optimal_rad.sin())
+            .collect();
         Self { set, cost, model, reserve_nm, body_mass_kg, constants, heights_m }
     }
 

@@ -14,6 +14,7 @@ mod csv;
 pub mod indicators;
 mod parquet;
 mod plot;
+pub mod text;
 pub use self::csv::*;
 pub use self::parquet::{ParquetSink, TimeSeriesSink, ROW_GROUP_ROWS};
 pub use plot::*;

@@ -181,12 +181,17 @@ pub struct Panel<'a> {
     pub series: Vec<Series<'a>>,
 }
 
+/// The largest magnitude a plot's axis spans: its range, padding and ticks stay finite (a
+/// range of +-f64::MAX overflows to infinity and the ticks never end).
+const AXIS_LIMIT: f64 = 1e300;
+
+/// A panel's y range: its values' (finite ones, clamped to +-[`AXIS_LIMIT`]) with 5 % padding.
 fn range(panel: &Panel) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for (_, v, _) in &panel.series {
-        for (_, x) in v.iter() {
-            lo = lo.min(*x);
-            hi = hi.max(*x);
+        for (_, x) in v.iter().filter(|(_, x)| x.is_finite()) {
+            lo = lo.min(x.clamp(-AXIS_LIMIT, AXIS_LIMIT));
+            hi = hi.max(x.clamp(-AXIS_LIMIT, AXIS_LIMIT));
         }
     }
     if !lo.is_finite() || !hi.is_finite() {
@@ -292,8 +297,10 @@ fn draw_panel<DB: DrawingBackend>(
         .map_err(|e| e.to_string())?;
     for (name, v, c) in &p.series {
         let c = *c;
+        // A value beyond the axis is drawn at its edge (no line to a pixel 1e300 away).
+        let on_axis = v.iter().map(|&(x, y)| (x, if y.is_nan() { y } else { y.clamp(lo, hi) }));
         chart
-            .draw_series(LineSeries::new(v.iter().copied(), c.stroke_width(2)))
+            .draw_series(LineSeries::new(on_axis, c.stroke_width(2)))
             .map_err(|e| e.to_string())?
             .label(*name)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));

@@ -14,6 +14,8 @@ pub struct FaultContext<'a> {
     pub settle_s: f64,
     /// The controller's sample period (s; 0 = continuous: no readings, no controller timing).
     pub sample_period_s: f64,
+    /// The simulation's step (s): an actuator fault acts at the start of a step.
+    pub dt_s: f64,
     /// The run detects gait events (loaded walking).
     pub walking: bool,
     /// The run has a leg (the device's sensors).
@@ -204,7 +206,8 @@ fn other_kind(key: &str, target: &str, f: &FaultSpec) -> Res<FaultKind> {
 /// Whether a run with `sensors` (a leg run when `leg`) has the reading channel `name` (a
 /// sensor switched off, or the device's on the bench, has none).
 pub fn reading_available(sensors: &crate::sensors::SensorParams, leg: bool, name: &str) -> bool {
-    let cx = FaultContext { duration_s: 0.0, settle_s: 0.0, sample_period_s: 0.0, walking: false, leg, sensors };
+    let cx =
+        FaultContext { duration_s: 0.0, settle_s: 0.0, sample_period_s: 0.0, dt_s: 0.0, walking: false, leg, sensors };
     sensor_channel(name).is_some_and(|ch| has_channel(&cx, ch))
 }
 
@@ -266,10 +269,32 @@ fn resolve_one(cx: &FaultContext, key: &str, f: &FaultSpec) -> Res<Fault> {
     }
     let onset = onset(cx, key, f)?;
     let duration_s = match f.duration_s {
-        Some(d) => within(key, "duration_s", d, 0.0, f64::MAX, false)?,
+        Some(d) => acting_duration(cx, key, d, sampled)?,
         None => f64::INFINITY,
     };
+    if let (FaultKind::Sensor(_, S::Dropout(Dropout::Hold)), Onset::At(t)) = (kind, onset) {
+        if t < 1e-9 {
+            return Err((
+                format!("{key}.mode"),
+                "\"hold\" holds the last reading before the onset, and at onset_s = 0 there is none: give an onset after the first sample, or mode = \"nan\" or \"zero\"".into(),
+            ));
+        }
+    }
     Ok(Fault { kind, onset, duration_s })
+}
+
+/// A fault's `duration_s`: at least the tick it acts at (a sensor or controller fault at
+/// sample instants, an actuator fault at the start of a step), so that it acts at least once.
+fn acting_duration(cx: &FaultContext, key: &str, d: f64, sampled: bool) -> Res<f64> {
+    let d = within(key, "duration_s", d, 0.0, f64::MAX, true)?;
+    let (tick, what) = if sampled { (cx.sample_period_s, "sample") } else { (cx.dt_s, "step (sim.dt_s)") };
+    if d < tick * (1.0 - 1e-9) {
+        return Err((
+            format!("{key}.duration_s"),
+            format!("{d} s is shorter than one {what} of {tick} s: the fault would never act"),
+        ));
+    }
+    Ok(d)
 }
 
 /// An entry's onset: a time within the run, or a gait event of a walking run.

@@ -703,6 +703,7 @@ impl Scenario {
             duration_s: f.sim.duration_s,
             settle_s: f.metrics.settle_s,
             sample_period_s: f.controller.sample_period_s,
+            dt_s: f.sim.dt_s,
             walking: crate::sim::is_walking(plant),
             leg,
             sensors: &f.sensors,

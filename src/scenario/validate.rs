@@ -33,16 +33,7 @@ struct Check<'a> {
     src: &'a str,
 }
 
-/// A number as a message shows it: plain in the everyday range, else in exponent form (no
-/// 309-digit 1e308).
-pub fn num(v: f64) -> String {
-    let a = v.abs();
-    if v == 0.0 || (1e-4..1e15).contains(&a) || !v.is_finite() {
-        format!("{v}")
-    } else {
-        format!("{v:e}")
-    }
-}
+pub use crate::error::num;
 
 impl Check<'_> {
     fn positive(&self, key: &str, v: f64) -> Result<()> {
@@ -64,6 +55,15 @@ impl Check<'_> {
             Ok(())
         } else {
             Err(Error::input(self.src, key, format!("must be in {}..={}, got {}", num(lo), num(hi), num(v))))
+        }
+    }
+    /// `0 < v <= hi`: a limit or a duration that must be positive and has a ceiling (a huge
+    /// finite value would overflow what is drawn or timed with it).
+    fn positive_up_to(&self, key: &str, v: f64, hi: f64) -> Result<()> {
+        if v > 0.0 && v <= hi {
+            Ok(())
+        } else {
+            Err(Error::input(self.src, key, format!("must be in (0, {}], got {}", num(hi), num(v))))
         }
     }
     fn fail(&self, key: &str, msg: impl Into<String>) -> Error {
@@ -311,6 +311,15 @@ fn compute_model(c: &Check, f: &ScenarioFile) -> Result<()> {
             "a modelled computation needs a sampled controller (controller.sample_period_s > 0)".to_string(),
         ));
     }
+    if ct.overrun_policy != crate::control::OverrunPolicy::ApplyLate
+        && (ct.sample_period_s == 0.0 || ct.compute_delay_s + ct.compute_jitter_s == 0.0)
+    {
+        return Err(c.fail(
+            "controller.overrun_policy",
+            "acts on a sample whose modelled computation overruns its budget: it needs a sampled controller \
+             (controller.sample_period_s > 0) and a modelled time (controller.compute_delay_s or compute_jitter_s > 0)",
+        ));
+    }
     if ct.compute_delay_s + ct.compute_jitter_s > f.sim.duration_s {
         return Err(c.fail("controller.compute_delay_s", "with compute_jitter_s longer than the run".to_string()));
     }
@@ -357,17 +366,8 @@ fn controller(c: &Check, f: &ScenarioFile) -> Result<()> {
         ));
     }
     if ct.kind == ControllerKind::Plugin {
-        ct.plugin.numbers().map_err(|(k, m)| c.fail(&k, m))?;
-        if ct.plugin.log.len() > crate::control::plugin::PLUGIN_LOG_LEN {
-            return Err(
-                c.fail("controller.plugin.log", format!("at most {} names", crate::control::plugin::PLUGIN_LOG_LEN))
-            );
-        }
-        crate::record::check_log_names(&ct.plugin.log).map_err(|m| c.fail("controller.plugin.log", m))?;
-        let t = ct.plugin.timeout_s;
-        if !(t.is_finite() && t > 0.0) {
-            return Err(c.fail("controller.plugin.timeout_s", format!("must be a finite number > 0 (s), got {t}")));
-        }
+        // The same check `exoleg hil` makes of what it sends its peer.
+        ct.plugin.check().map_err(|(k, m)| c.fail(&k, m))?;
     }
     c.non_negative("controller.resonator_hz", ct.resonator_hz)?;
     if ct.resonator_hz > 0.0 && ct.sample_period_s > 0.0 && ct.resonator_hz >= 0.5 / ct.sample_period_s {
@@ -565,23 +565,7 @@ fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
             format!("must be shorter than sim.duration_s = {} (nothing would be left to measure)", f.sim.duration_s),
         ));
     }
-    let sf = &f.safety;
-    c.non_negative("safety.knee_margin_deg", sf.knee_margin_deg)?;
-    c.positive("safety.safe_moment_nm", sf.safe_moment_nm)?;
-    c.non_negative("safety.safe_hold_s", sf.safe_hold_s)?;
-    for (k, v) in [
-        ("safety.max_knee_accel_rad_s2", sf.max_knee_accel_rad_s2),
-        ("safety.max_knee_jerk_rad_s3", sf.max_knee_jerk_rad_s3),
-        ("safety.max_time_to_safe_s", sf.max_time_to_safe_s),
-    ] {
-        if let Some(v) = v {
-            c.positive(k, v)?;
-        }
-    }
-    let cl = &f.cuff_limits;
-    for (k, v) in [("comfort_n", cl.comfort_n), ("thigh_pain_n", cl.thigh_pain_n), ("shank_pain_n", cl.shank_pain_n)] {
-        c.positive(&format!("cuff_limits.{k}"), v)?;
-    }
+    safety_limits(c, f)?;
     let cr = &f.criteria;
     for (k, v) in cr.limits() {
         if let Some(v) = v {
@@ -597,6 +581,34 @@ fn leg_human_metrics(c: &Check, f: &ScenarioFile) -> Result<()> {
             "criteria.max_not_walking_flags",
             "needs loaded walking (a gait on the carriage with ground.enabled; hip.mode = \"carriage\")",
         ));
+    }
+    Ok(())
+}
+
+/// Ceilings of the safety and comfort limits: far beyond anything a body or a device reaches,
+/// low enough that every figure, difference and plot of them stays finite.
+const MAX_FORCE_N: f64 = 1e6;
+const MAX_MOMENT_NM: f64 = 1e6;
+const MAX_LIMIT_S: f64 = 1e6;
+
+/// `[safety]`, `[cuff_limits]`: each limit positive (or non-negative) and under its ceiling.
+fn safety_limits(c: &Check, f: &ScenarioFile) -> Result<()> {
+    let sf = &f.safety;
+    c.range("safety.knee_margin_deg", sf.knee_margin_deg, 0.0, 360.0)?;
+    c.positive_up_to("safety.safe_moment_nm", sf.safe_moment_nm, MAX_MOMENT_NM)?;
+    c.range("safety.safe_hold_s", sf.safe_hold_s, 0.0, MAX_LIMIT_S)?;
+    for (k, v, hi) in [
+        ("safety.max_knee_accel_rad_s2", sf.max_knee_accel_rad_s2, 1e9),
+        ("safety.max_knee_jerk_rad_s3", sf.max_knee_jerk_rad_s3, 1e12),
+        ("safety.max_time_to_safe_s", sf.max_time_to_safe_s, MAX_LIMIT_S),
+    ] {
+        if let Some(v) = v {
+            c.positive_up_to(k, v, hi)?;
+        }
+    }
+    let cl = &f.cuff_limits;
+    for (k, v) in [("comfort_n", cl.comfort_n), ("thigh_pain_n", cl.thigh_pain_n), ("shank_pain_n", cl.shank_pain_n)] {
+        c.positive_up_to(&format!("cuff_limits.{k}"), v, MAX_FORCE_N)?;
     }
     Ok(())
 }

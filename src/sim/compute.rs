@@ -106,7 +106,7 @@ impl Simulation {
                         m.budget_s
                     );
                     if self.sc.on_stop == crate::control::OnStop::Failsafe {
-                        self.go_failsafe(t, message);
+                        self.go_failsafe(t, crate::control::ControlStop::stop(message));
                         return Ok(Computed::Now(ControlOutput::default()));
                     }
                     let controller = match &self.control {

@@ -5,7 +5,7 @@
 //! (`controller.on_stop = "failsafe"`).
 
 use super::{ControlBlock, Simulation};
-use crate::control::ControlOutput;
+use crate::control::{ControlOutput, ControlStop};
 use crate::faults::{ActuatorFaultKind as A, ControllerFaultKind as C, FaultClock, FaultKind};
 use crate::hydraulics::{Failsafe, ValveFaults};
 use rand::SeedableRng;
@@ -24,8 +24,8 @@ pub(crate) struct FaultRun {
     heel_strikes: usize,
     /// Per fault: its onset's one-time action is done (a stuck spool put at its value).
     started: Vec<bool>,
-    /// The controller stopped (time, message); the device is in its fail-safe state since.
-    pub stopped: Option<(f64, String)>,
+    /// The controller stopped (time, why); the device is in its fail-safe state since.
+    pub stopped: Option<(f64, ControlStop)>,
     /// Overrun: the commands on their way to the valve, oldest first.
     late: VecDeque<ControlOutput>,
     /// Lost samples' draws.
@@ -61,9 +61,12 @@ impl Simulation {
         f.clock.active(&self.sc.faults, i, t).then(|| f.clock.onset(i)).flatten()
     }
 
-    /// Whether any fault is active at `t` (s), or the device is in its fail-safe state.
+    /// Whether any of the run's `[[faults]]` is active at `t` (s): the row's `fault_active`.
+    /// The device's fail-safe state after its controller stopped is not a fault (its onset
+    /// is the injected fault's, never the stop's; `summary.json` `controller_stop` says when
+    /// and why the controller stopped).
     pub(crate) fn any_fault_active(&self, t: f64) -> bool {
-        self.faults.stopped.is_some() || (0..self.sc.faults.len()).any(|i| self.fault_active(i, t).is_some())
+        (0..self.sc.faults.len()).any(|i| self.fault_active(i, t).is_some())
     }
 
     /// The start of a step at `t` (s): a new heel strike sets the event onsets waiting for it,
@@ -159,19 +162,19 @@ impl Simulation {
         }
     }
 
-    /// The controller stopped at `t` (s) with `message` under `controller.on_stop =
-    /// "failsafe"`: the device goes to its fail-safe state for the rest of the run.
-    pub(super) fn go_failsafe(&mut self, t: f64, message: String) {
+    /// The controller stopped at `t` (s) for `why` under `controller.on_stop = "failsafe"`:
+    /// the device goes to its fail-safe state for the rest of the run (the first stop is kept,
+    /// its cause and message).
+    pub(super) fn go_failsafe(&mut self, t: f64, why: ControlStop) {
         if self.faults.stopped.is_none() {
-            self.faults.stopped = Some((t, message));
+            self.faults.stopped = Some((t, why));
         }
         self.update_faults(t);
     }
 
-    /// When the controller stopped (s) and what it said, under `controller.on_stop =
-    /// "failsafe"`.
-    pub fn controller_stop(&self) -> Option<(f64, &str)> {
-        self.faults.stopped.as_ref().map(|(t, m)| (*t, m.as_str()))
+    /// When the controller stopped (s) and why, under `controller.on_stop = "failsafe"`.
+    pub fn controller_stop(&self) -> Option<(f64, &ControlStop)> {
+        self.faults.stopped.as_ref().map(|(t, m)| (*t, m))
     }
 
     /// Each fault's onset (s), once it happened (None: a gait event that never came).

@@ -530,7 +530,8 @@ impl Simulation {
             out
         } else if self.sc.on_stop == crate::control::OnStop::Failsafe {
             // A stop like any other: the device goes to its fail-safe state.
-            self.go_failsafe(t, format!("the valve command is {}", out.valve_command));
+            let why = crate::control::ControlStop::command(format!("the valve command is {}", out.valve_command));
+            self.go_failsafe(t, why);
             ControlOutput::default()
         } else {
             return Err(Error::ControllerStopped {
@@ -604,7 +605,7 @@ impl Simulation {
         let out = match ctrl.update(&input) {
             Ok(out) => out,
             Err(e) if self.sc.on_stop == crate::control::OnStop::Failsafe => {
-                self.go_failsafe(t, e.message);
+                self.go_failsafe(t, e);
                 ControlOutput::default()
             }
             Err(e) => {

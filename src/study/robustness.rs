@@ -85,7 +85,8 @@ pub fn write_report_png(
         panels.push(("knee RMS error (deg)", agg.values(Metric::KneeRmsError).to_vec(), c.knee_rms_error_deg));
         panels.push(("knee max |error| (deg)", agg.values(Metric::KneeMaxAbsError).to_vec(), c.knee_max_error_deg));
     }
-    let title = format!("{source_name}: +-{percent}% parameters, Table 2 disturbances, {} runs", agg.runs);
+    let name = crate::output::text::title_name(source_name);
+    let title = format!("{name}: +-{percent}% parameters, Table 2 disturbances, {} runs", agg.runs);
     crate::output::histograms_png(&dir.join("robustness.png"), &title, &panels)?;
     Ok(title)
 }

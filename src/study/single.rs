@@ -80,21 +80,24 @@ pub struct RunReport {
 }
 
 impl RunReport {
-    /// All criteria passed (true when there are none).
+    /// All criteria passed (true when there are none) and the controller did not crash.
     pub fn passed(&self) -> bool {
-        self.criteria.iter().all(|c| c.pass)
+        self.summary.passes(&self.criteria)
     }
 }
 
-/// Plot title: scenario, controller, plant and reference.
+/// Plot title: the scenario's file name, controller, plant and reference.
 pub fn run_title(sc: &ResolvedScenario) -> String {
     let f = &sc.file;
     let reference = match &sc.model.reference {
         crate::reference::ForceReference::Sine(s) => format!("F_d = {} N sine at {} Hz", s.amplitude, s.frequency_hz),
-        crate::reference::ForceReference::Gait(k) => format!("gait {}", k.gait.source),
+        crate::reference::ForceReference::Gait(k) => {
+            format!("gait {}", crate::output::text::title_name(&k.gait.source))
+        }
         crate::reference::ForceReference::Pose { knee_rad } => format!("pose, knee {:.1} deg", knee_rad.to_degrees()),
     };
-    format!("{} | {} | {:?} | {}", sc.source_name, f.controller.kind.as_str(), f.plant.kind, reference)
+    let name = crate::output::text::title_name(&sc.source_name);
+    format!("{name} | {} | {:?} | {}", f.controller.kind.as_str(), f.plant.kind, reference)
 }
 
 /// A run kept in memory (the Python package's `exoleg.run`): what `summary.json` holds, and
@@ -364,6 +367,12 @@ impl<'a> RunBuilder<'a> {
     /// folder, renamed into place only when the run completed (nothing is half-written).
     pub fn write_to(self, out: &Path) -> Result<RunReport> {
         let dir = crate::output::OutputDir::prepare_with_inputs(out, "--out", &self.sc.input_paths())?;
+        self.write_into(dir)
+    }
+
+    /// [`Self::write_to`] into a folder prepared beforehand (checked before anything else
+    /// starts: `exoleg hil` prepares it before its port opens).
+    pub fn write_into(self, dir: crate::output::OutputDir) -> Result<RunReport> {
         let title = run_title(self.sc);
         let report = if self.animate && self.sc.model.leg().is_some() {
             let mut anim = crate::output::animate::Animation::new(self.sc.model.steps, self.sc.model.dt_s);

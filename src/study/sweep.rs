@@ -266,7 +266,8 @@ pub struct RunLine {
     pub summary: Option<Summary>,
     /// Criteria checks of the scenario, if it has any.
     pub criteria: Vec<CriterionResult>,
-    /// All criteria passed (true when there are none) and the run completed.
+    /// All criteria passed (true when there are none), the run completed and its controller
+    /// did not crash.
     pub passed: bool,
     /// Why the run failed (divergence), if it did.
     pub error: Option<String>,
@@ -393,14 +394,7 @@ fn run_one(
         Err(Error::Interrupted) => return Err(Error::Interrupted),
         Ok(summary) => {
             let criteria = check_criteria(&sc.file.criteria, &summary);
-            RunLine {
-                index: i,
-                sets,
-                passed: criteria.iter().all(|c| c.pass),
-                criteria,
-                summary: Some(summary),
-                error: None,
-            }
+            RunLine { index: i, sets, passed: summary.passes(&criteria), criteria, summary: Some(summary), error: None }
         }
         Err(e) => {
             RunLine { index: i, sets, summary: None, criteria: Vec::new(), passed: false, error: Some(e.to_string()) }

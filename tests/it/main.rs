@@ -16,6 +16,8 @@ mod gait;
 mod gait_check;
 mod hardening;
 mod hardening3;
+mod hardening4;
+mod hardening4_link;
 mod hil;
 mod hostile;
 mod isolation;

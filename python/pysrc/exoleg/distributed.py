@@ -84,7 +84,7 @@ def _sharded(client, scenario, kwargs, kind, runs, shards, out) -> "exoleg.Study
     if shards is None:
         threads = sum(client.nthreads().values()) or 1
         shards = 2 * threads
-    shards = max(1, min(int(shards), runs))
+    shards = min(exoleg._count("shards", shards, 1), runs)
     futures = [client.submit(_run_shard, scenario, k, shards, kwargs, kind, pure=False) for k in range(shards)]
     results = client.gather(futures)
     with tempfile.TemporaryDirectory(prefix="exoleg-merge-") as tmp:

@@ -18,6 +18,7 @@ COMMAND again without a second step. This module imports nothing from the compil
 """
 
 import math
+import numbers
 import socket
 import struct
 import sys
@@ -61,21 +62,41 @@ def _message(kind, seq=0, t_ns=0, payload=b""):
     return HEADER.pack(MAGIC, VERSION, kind, seq, t_ns) + payload
 
 
+MAX_PARAMS = 256
+
+
 def parse_setup(b):
-    """SETUP's payload as a dict (raises ValueError when truncated)."""
+    """SETUP's payload as a dict. Anything short, long or lying about its parameters raises
+    ValueError naming what is wrong (never struct.error)."""
     if len(b) < 80:
-        raise ValueError("SETUP truncated")
+        raise ValueError(f"SETUP truncated: {len(b)} bytes, the fixed part is 80")
     _abi, n, _hash = struct.unpack_from("<IIQ", b, 0)
+    if n > MAX_PARAMS:
+        raise ValueError(f"SETUP: {n} parameters (at most {MAX_PARAMS})")
     period, limit, n1, n2, n3, tau, ks = struct.unpack_from("<7d", b, 16)
     (seed,) = struct.unpack_from("<Q", b, 72)
     params, at = {}, 80
-    for _ in range(n):
+    for i in range(n):
+        if at + 2 > len(b):
+            raise ValueError(f"SETUP truncated: parameter {i}'s name length missing")
         (length,) = struct.unpack_from("<H", b, at)
+        if at + 2 + length + 8 > len(b):
+            raise ValueError(f"SETUP truncated: parameter {i} needs {2 + length + 8} bytes, {len(b) - at} left")
         name = b[at + 2 : at + 2 + length].decode("utf-8", "replace")
         (params[name],) = struct.unpack_from("<d", b, at + 2 + length)
         at += 2 + length + 8
+    if at != len(b):
+        raise ValueError(f"SETUP oversized: {len(b) - at} bytes after the parameters")
     nominal = {"n1": n1, "n2": n2, "n3": n3, "tau_s": tau, "k_s": ks}
     return {"sample_period_s": period, "valve_command_limit": limit, "nominal": nominal, "seed": seed, "params": params}
+
+
+def _valve_command(u):
+    """The step's return as the valve command: a real number (a bool or a string is refused,
+    never converted: "1.5" is not 1.5)."""
+    if isinstance(u, bool) or not isinstance(u, numbers.Real):
+        raise TypeError(f"step() must return the valve command as a number, got {u!r} ({type(u).__name__})")
+    return float(u)
 
 
 def parse_readings(b):
@@ -150,7 +171,7 @@ def serve(host, port, make, timeout_s=30.0):
             sock.send(last_reply)
             continue
         t0 = time.perf_counter_ns()
-        u = float(step(parse_readings(b[HEADER.size :])))
+        u = _valve_command(step(parse_readings(b[HEADER.size :])))
         compute_ns = time.perf_counter_ns() - t0
         payload = COMMAND_STRUCT.pack(0, 0, compute_ns, 248, 0, u, 0.0, *([0.0] * 8), b"")
         last_seq, last_reply = seq, _message(COMMAND, seq, t_ns, payload)
@@ -159,10 +180,22 @@ def serve(host, port, make, timeout_s=30.0):
 
 
 def main(argv):
+    usage = "usage: python -m exoleg.hil HOST PORT"
     if len(argv) != 3:
-        print("usage: python -m exoleg.hil HOST PORT", file=sys.stderr)
+        print(usage, file=sys.stderr)
         return 2
-    n = serve(argv[1], argv[2], erl_smc)
+    try:
+        port = int(argv[2])
+        if not 0 < port < 65536:
+            raise ValueError
+    except ValueError:
+        print(f"error: PORT: {argv[2]!r} is not a port number (1..65535); {usage}", file=sys.stderr)
+        return 2
+    try:
+        n = serve(argv[1], port, erl_smc)
+    except (OSError, ValueError, RuntimeError, TimeoutError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 3
     print(f"samples {n}")
     return 0
 

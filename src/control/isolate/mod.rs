@@ -4,23 +4,26 @@
 //! run's readings out, the plugin's command back, every sample. The same peer a board is
 //! over UDP (`exoleg hil`), on another transport.
 //!
-//! Two watchdogs (FMPy's remoting has the first, not the second): the socket's end (the child
-//! died: its signal or exit status is read with `waitpid`) and a wall-clock limit on every
-//! call (`controller.plugin.timeout_s`: the child is killed). Either ends the run with
-//! [`ControlStop`] (exit 3) naming the signal or the timeout, the call, the sample and the
-//! simulated time; in a sweep only that run fails. The child is killed and reaped on every
-//! path (`Drop`), and it dies with the thread that started it (`PR_SET_PDEATHSIG`), so no
-//! zombie or orphan outlives a run.
+//! Two watchdogs (FMPy's remoting has the first, not the second): the child's end (seen by
+//! waiting for the child itself, not only by its socket, which a process the plugin forked may
+//! hold open: its signal or exit status is read with `waitid`) and a wall-clock limit on every
+//! call (`controller.plugin.timeout_s`; the run's own pauses, a Ctrl-Z or a debugger, do not
+//! count: [`super::wait`]): the child is killed. Either ends the run with [`ControlStop`]
+//! (exit 3) naming the signal or the timeout, the call, the sample and the simulated time; in
+//! a sweep only that run fails. The child runs in a process group of its own, killed and
+//! reaped on every path (`Drop`), what the plugin forked with it, and it dies with the thread
+//! that started it (`PR_SET_PDEATHSIG`), so no zombie or orphan outlives a run (a plugin that
+//! leaves the group, `setsid()`, is on its own).
 //!
 //! Cost: one round trip per sample (two context switches; the README gives the measured
 //! figure and `benches/isolate.rs` measures it).
 
 pub mod child;
 
-use super::plugin::{message_text, output_of, readings_of, ExolegCommand, ExolegReadings, PluginSetup, StatusCount};
+use super::plugin::{message_text, output_of, readings_of, ExolegCommand, PluginSetup, StatusCount};
 use super::wire::{self, Header, Message, MsgType};
 use super::{ControlOutput, ControlStop, DiscreteController, SampleInput};
-use std::io::{ErrorKind, Read, Write};
+use std::io::{ErrorKind, Write};
 use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
 use std::os::unix::net::UnixStream;
 use std::os::unix::process::{CommandExt, ExitStatusExt};
@@ -69,11 +72,16 @@ pub struct IsolatedPlugin {
     child: Option<Child>,
     sock: UnixStream,
     timeout: Duration,
+    memory_mb: Option<u64>,
     name: String,
     out: Vec<u8>,
     rx: Vec<u8>,
     command: ExolegCommand,
     status: StatusCount,
+    /// `exoleg_reset` has been called (at the first sample).
+    reset_done: bool,
+    /// The call the child is in while the run waits (for messages).
+    call: &'static str,
     /// The step call's wall time as the child measured it (s).
     compute_s: Vec<f64>,
     /// The whole round trip as the run saw it (s).
@@ -82,13 +90,17 @@ pub struct IsolatedPlugin {
 
 /// What went wrong with the child, for the message.
 enum Failure {
-    /// The call took longer than the timeout.
-    Timeout,
-    /// The socket ended or broke (the child died or closed it).
+    /// The call took longer than this (the run's own pauses not counted).
+    Timeout(Duration),
+    /// The socket ended or broke, or the child ended.
     Gone(String),
     /// The child answered something else than the protocol asks.
     Protocol(String),
 }
+
+/// How often a wait for the child looks whether it is still alive (a grandchild may hold the
+/// socket open after the child died).
+const WATCH_SLICE: Duration = Duration::from_millis(10);
 
 /// The executable to run as the plugin host: `EXOLEG_EXE` if set, this executable if it is
 /// exoleg, else an `exoleg` next to it or one folder up (tests and benches in
@@ -125,14 +137,20 @@ fn seqpacket_pair() -> std::io::Result<(OwnedFd, OwnedFd)> {
     Ok(unsafe { (OwnedFd::from_raw_fd(fds[0]), OwnedFd::from_raw_fd(fds[1])) })
 }
 
-/// Start `exoleg plugin-host` on the child's end of a socket pair.
-fn spawn_host(setup: &PluginSetup, child_end: &OwnedFd) -> Result<Child, String> {
+/// Start `exoleg plugin-host` on the child's end of a socket pair, in a process group of its
+/// own (whatever the plugin forks is killed with it: [`IsolatedPlugin::end_child`]).
+fn spawn_host(setup: &PluginSetup, child_end: &OwnedFd, memory_mb: Option<u64>) -> Result<Child, String> {
     let exe = host_executable()?;
     let fd = child_end.as_raw_fd();
     let parent = std::process::id() as libc::pid_t;
     let mut cmd = Command::new(&exe);
     cmd.arg(HOST_COMMAND).arg("--fd").arg(fd.to_string()).arg("--library").arg(&setup.library().path);
+    if let Some(mb) = memory_mb {
+        cmd.arg("--memory-mb").arg(mb.to_string());
+    }
     cmd.stdin(Stdio::null());
+    // Its own process group: the run kills the group, the plugin's own children with it.
+    cmd.process_group(0);
     // SAFETY: the closure runs in the child between fork and exec and calls only
     // async-signal-safe functions (fcntl, prctl, getppid).
     unsafe {
@@ -152,12 +170,25 @@ fn spawn_host(setup: &PluginSetup, child_end: &OwnedFd) -> Result<Child, String>
     cmd.spawn().map_err(|e| format!("cannot start {} {HOST_COMMAND}: {e}", exe.display()))
 }
 
+/// Wait up to `limit` for `fd` to be readable (or hung up): Ok(false) when the time ran out.
+fn readable(fd: i32, limit: Duration) -> std::io::Result<bool> {
+    let mut p = libc::pollfd { fd, events: libc::POLLIN, revents: 0 };
+    let ts = libc::timespec { tv_sec: limit.as_secs() as libc::time_t, tv_nsec: limit.subsec_nanos() as _ };
+    // SAFETY: one valid pollfd and a valid timespec for the call's duration.
+    let r = unsafe { libc::ppoll(&mut p, 1, &ts, std::ptr::null()) };
+    match r {
+        0 => Ok(false),
+        n if n > 0 => Ok(true),
+        _ => Err(std::io::Error::last_os_error()),
+    }
+}
+
 impl IsolatedPlugin {
     /// Start the child, say hello, send the run's figures and parameters, and wait for the
     /// instance (an error if the child does not start, or the plugin refuses its parameters).
-    pub fn spawn(setup: Arc<PluginSetup>, timeout_s: f64) -> Result<Self, String> {
+    pub fn spawn(setup: Arc<PluginSetup>, limits: super::plugin::Isolation) -> Result<Self, String> {
         let (ours, theirs) = seqpacket_pair().map_err(|e| format!("cannot make a socket pair: {e}"))?;
-        let child = spawn_host(&setup, &theirs)?;
+        let child = spawn_host(&setup, &theirs, limits.memory_mb)?;
         drop(theirs);
         let name = format!("{} (isolated)", setup.library().name());
         let mut me = Self {
@@ -165,30 +196,39 @@ impl IsolatedPlugin {
             setup,
             child: Some(child),
             sock: UnixStream::from(ours),
-            timeout: Duration::from_secs_f64(timeout_s),
+            timeout: Duration::from_secs_f64(limits.timeout_s),
+            memory_mb: limits.memory_mb,
             name,
             out: Vec::with_capacity(wire::COMMAND_LEN + wire::HEADER_LEN),
             rx: vec![0; wire::MAX_DATAGRAM + 1],
             command: ExolegCommand::default(),
+            reset_done: false,
+            call: "the start (loading the library)",
             compute_s: Vec::new(),
             round_trip_s: Vec::new(),
         };
-        me.handshake().map_err(|f| me.describe(f, "the start (exoleg_create)", None))?;
+        me.handshake().map_err(|f| me.describe(f, None))?;
         Ok(me)
+    }
+
+    /// The time the child may take to start and create its instance: the call timeout plus
+    /// [`STARTUP_GRACE_S`].
+    fn startup(&self) -> Duration {
+        self.timeout + Duration::from_secs_f64(STARTUP_GRACE_S)
     }
 
     /// HELLO in, SETUP out, READY in.
     fn handshake(&mut self) -> Result<(), Failure> {
-        let startup = self.timeout + Duration::from_secs_f64(STARTUP_GRACE_S);
-        let (_, hello) = self.receive(startup)?;
+        let (_, hello) = self.receive(self.startup())?;
         match hello {
             Message::Hello { abi_version, channel_hash }
                 if abi_version == wire::abi_version() && channel_hash == wire::channel_hash() => {}
             other => return Err(Failure::Protocol(format!("expected HELLO of this exoleg, got {other:?}"))),
         }
         let setup = Message::Setup(self.setup.wire_setup());
+        self.call = "the start (exoleg_create)";
         self.send(&Header { kind: MsgType::Setup, seq: 0, sim_time_ns: 0 }, &setup)?;
-        match self.receive(startup)?.1 {
+        match self.receive(self.startup())?.1 {
             Message::Ready { status: 0, .. } => Ok(()),
             Message::Ready { message, .. } => Err(Failure::Protocol(message)),
             other => Err(Failure::Protocol(format!("expected READY, got {other:?}"))),
@@ -197,99 +237,155 @@ impl IsolatedPlugin {
 
     fn send(&mut self, h: &Header, m: &Message) -> Result<(), Failure> {
         wire::encode(h, m, &mut self.out);
-        match self.sock.write(&self.out) {
-            Ok(n) if n == self.out.len() => Ok(()),
-            Ok(n) => Err(Failure::Gone(format!("sent {n} of {} bytes", self.out.len()))),
-            Err(e) => Err(Failure::Gone(e.to_string())),
-        }
-    }
-
-    /// The next message, within `limit`.
-    fn receive(&mut self, limit: Duration) -> Result<(Header, Message), Failure> {
-        let spin = Duration::from_secs_f64(SPIN_S).min(limit);
-        let got = match receive_spinning(&self.sock, &mut self.rx, spin) {
-            Some(r) => r,
-            None => {
-                self.sock
-                    .set_read_timeout(Some(limit.max(Duration::from_micros(1))))
-                    .map_err(|e| Failure::Gone(e.to_string()))?;
-                self.sock.read(&mut self.rx)
+        loop {
+            match self.sock.write(&self.out) {
+                Ok(n) if n == self.out.len() => return Ok(()),
+                Ok(n) => return Err(Failure::Gone(format!("sent {n} of {} bytes", self.out.len()))),
+                Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+                Err(e) => return Err(Failure::Gone(e.to_string())),
             }
-        };
-        match got {
-            Ok(0) => Err(Failure::Gone("the socket closed".into())),
-            Ok(n) => wire::decode(&self.rx[..n]).map_err(Failure::Protocol),
-            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => Err(Failure::Timeout),
-            Err(e) => Err(Failure::Gone(e.to_string())),
         }
     }
 
-    /// One sample across: READINGS out, the COMMAND of the same sample back.
-    /// Returns the peer's status and the call it is from.
-    fn exchange(&mut self, r: &ExolegReadings, seq: u64) -> Result<(i32, u32), Failure> {
-        let h = Header { kind: MsgType::Readings, seq, sim_time_ns: wire::time_ns(r.t_s) };
-        let t0 = Instant::now();
-        self.send(&h, &Message::Readings(Box::new(*r)))?;
+    /// The next message, within `limit` (the run's own pauses not counted); the child's end
+    /// seen by waiting for it, not only by its socket.
+    fn receive(&mut self, limit: Duration) -> Result<(Header, Message), Failure> {
+        let mut spin = Duration::from_secs_f64(SPIN_S).min(limit);
+        let fd = self.sock.as_raw_fd();
+        let mut deadline = super::wait::Deadline::new(limit);
+        loop {
+            if let Some(got) = receive_spinning(&self.sock, &mut self.rx, spin) {
+                return match got {
+                    Ok(0) => Err(Failure::Gone("the socket closed".into())),
+                    Ok(n) => wire::decode(&self.rx[..n]).map_err(Failure::Protocol),
+                    Err(e) => Err(Failure::Gone(e.to_string())),
+                };
+            }
+            spin = Duration::ZERO;
+            let slice = deadline.left().min(WATCH_SLICE);
+            let t0 = Instant::now();
+            let r = readable(fd, slice);
+            let interrupted = matches!(&r, Err(e) if e.kind() == ErrorKind::Interrupted);
+            if super::wait::was_paused(t0, slice, interrupted) {
+                deadline.restart();
+            }
+            match r {
+                Ok(true) => continue,
+                Err(e) if !interrupted => return Err(Failure::Gone(e.to_string())),
+                _ => {}
+            }
+            if self.child_ended() {
+                return Err(Failure::Gone("the child process ended".into()));
+            }
+            if deadline.passed() {
+                return Err(Failure::Timeout(limit));
+            }
+        }
+    }
+
+    /// The child's COMMAND of sample `seq` for `call` (its status, the command kept).
+    fn reply(&mut self, seq: u64, call: u32) -> Result<i32, Failure> {
         let (h, m) = self.receive(self.timeout)?;
-        self.round_trip_s.push(t0.elapsed().as_secs_f64());
         match m {
-            Message::Command { status, call, compute_ns, command } if h.seq == seq => {
+            Message::Command { status, call: c, compute_ns, command } if h.seq == seq && c == call => {
                 self.command = *command;
-                self.compute_s.push(compute_ns as f64 * 1e-9);
-                Ok((status, call))
+                if call == wire::CALL_STEP {
+                    self.compute_s.push(compute_ns as f64 * 1e-9);
+                }
+                Ok(status)
             }
             other => Err(Failure::Protocol(format!("expected the COMMAND of sample {seq}, got {other:?}"))),
         }
     }
 
-    /// The message of a failure during `call` at `sample` (index, t), the child killed and
-    /// reaped first (its signal or exit status named).
-    fn describe(&mut self, f: Failure, call: &str, sample: Option<(u64, f64)>) -> String {
+    /// One sample across: READINGS out; at the first sample the reset's COMMAND back (its
+    /// status taken as in-process: a warning counted, a stop the end); the step's COMMAND back.
+    fn exchange(&mut self, s: &SampleInput, seq: u64) -> Result<i32, ControlStop> {
+        let r = readings_of(s);
+        let h = Header { kind: MsgType::Readings, seq, sim_time_ns: wire::time_ns(r.t_s) };
+        let t0 = Instant::now();
+        let at = Some((seq, s.t_s));
+        self.send(&h, &Message::Readings(Box::new(r))).map_err(|f| ControlStop::crash(self.describe(f, at)))?;
+        if !self.reset_done {
+            self.reset_done = true;
+            self.call = "exoleg_reset";
+            let st = self.reply(seq, wire::CALL_RESET).map_err(|f| ControlStop::crash(self.describe(f, at)))?;
+            let cmd = self.command;
+            self.status.take("exoleg_reset", st, || message_text(&cmd.message))?;
+        }
+        self.call = "exoleg_step";
+        let st = self.reply(seq, wire::CALL_STEP).map_err(|f| ControlStop::crash(self.describe(f, at)))?;
+        self.round_trip_s.push(t0.elapsed().as_secs_f64());
+        Ok(st)
+    }
+
+    /// The message of a failure during the current call at `sample` (index, t), the child and
+    /// its process group killed and reaped first (its signal or exit status named).
+    fn describe(&mut self, f: Failure, sample: Option<(u64, f64)>) -> String {
         let at = sample.map_or(String::new(), |(k, t)| format!(" of sample {k} (t = {t:.6} s)"));
+        let call = self.call;
         let timeout_s = self.timeout.as_secs_f64();
         let what = match f {
-            Failure::Timeout => {
-                self.kill();
-                format!("took longer than controller.plugin.timeout_s = {timeout_s} s in {call}{at}: killed")
+            Failure::Timeout(limit) => {
+                self.end_child(Duration::ZERO);
+                if limit == self.timeout {
+                    format!("took longer than controller.plugin.timeout_s = {timeout_s} s in {call}{at}: killed")
+                } else {
+                    format!(
+                        "took longer than {} s (controller.plugin.timeout_s = {timeout_s} s and {STARTUP_GRACE_S} s to start the child) in {call}{at}: killed",
+                        limit.as_secs_f64()
+                    )
+                }
             }
-            Failure::Gone(why) => match self.reap(Duration::from_secs(2)) {
-                Some(status) => format!("{} in {call}{at}", exit_text(status)),
+            Failure::Gone(why) => match self.end_child(Duration::from_secs(2)) {
+                Some(status) => format!("{}{} in {call}{at}", exit_text(status), self.memory_hint(status)),
                 None => format!("stopped answering in {call}{at} ({why}): killed"),
             },
             Failure::Protocol(why) => {
-                self.kill();
+                self.end_child(Duration::ZERO);
                 format!("broke the protocol in {call}{at}: {why}")
             }
         };
         format!("plugin {} {what}", self.name)
     }
 
-    /// Wait up to `limit` for the child to end; kill it after that. Its status if it ended by
-    /// itself.
-    fn reap(&mut self, limit: Duration) -> Option<std::process::ExitStatus> {
-        let child = self.child.as_mut()?;
-        let t0 = Instant::now();
-        loop {
-            match child.try_wait() {
-                Ok(Some(s)) => {
-                    self.child = None;
-                    return Some(s);
-                }
-                Ok(None) if t0.elapsed() < limit => std::thread::sleep(Duration::from_micros(200)),
-                _ => {
-                    self.kill();
-                    return None;
-                }
+    /// With `controller.plugin.memory_mb`, a crash may be an allocation the limit refused.
+    fn memory_hint(&self, status: std::process::ExitStatus) -> String {
+        match (self.memory_mb, status.signal()) {
+            (Some(mb), Some(libc::SIGSEGV | libc::SIGABRT | libc::SIGBUS | libc::SIGKILL)) => {
+                format!(" (controller.plugin.memory_mb = {mb}: an allocation beyond the limit?)")
             }
+            _ => String::new(),
         }
     }
 
-    /// Kill the child and reap it (nothing if it is gone).
-    fn kill(&mut self) {
-        if let Some(mut c) = self.child.take() {
-            let _ = c.kill();
-            let _ = c.wait();
+    /// Whether the child has ended (not reaped: its process group stays named by its pid
+    /// until [`Self::end_child`] kills the group).
+    fn child_ended(&self) -> bool {
+        let Some(c) = &self.child else { return true };
+        // SAFETY: zeroed siginfo is valid for waitid to fill; WNOWAIT leaves the child unreaped.
+        let mut info: libc::siginfo_t = unsafe { std::mem::zeroed() };
+        let flags = libc::WEXITED | libc::WNOHANG | libc::WNOWAIT;
+        // SAFETY: a child of this process; `info` is valid for writes.
+        let r = unsafe { libc::waitid(libc::P_PID, c.id() as libc::id_t, &mut info, flags) };
+        // SAFETY: si_pid is set by waitid (0 when the child has not changed state).
+        r != 0 || unsafe { info.si_pid() } != 0
+    }
+
+    /// Wait up to `limit` for the child to end by itself, then kill its process group (the
+    /// child, or what it forked) and reap it. Its status if it ended by itself.
+    fn end_child(&mut self, limit: Duration) -> Option<std::process::ExitStatus> {
+        let t0 = Instant::now();
+        while !self.child_ended() && t0.elapsed() < limit {
+            std::thread::sleep(Duration::from_micros(200));
         }
+        let by_itself = self.child_ended();
+        let mut child = self.child.take()?;
+        // SAFETY: kill(2) on the child's process group (its pid: `process_group(0)`), which
+        // exists until the child is reaped below.
+        unsafe { libc::kill(-(child.id() as libc::pid_t), libc::SIGKILL) };
+        let status = child.wait().ok()?;
+        by_itself.then_some(status)
     }
 }
 
@@ -329,15 +425,11 @@ impl DiscreteController for IsolatedPlugin {
     fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
         let seq = if s.period_s > 0.0 { (s.t_s / s.period_s).round() as u64 } else { 0 };
         if self.child.is_none() {
-            return Err(ControlStop { message: format!("plugin {} is no longer running", self.name) });
+            return Err(ControlStop::crash(format!("plugin {} is no longer running", self.name)));
         }
-        let r = readings_of(s);
-        let (st, call) = self
-            .exchange(&r, seq)
-            .map_err(|f| ControlStop { message: self.describe(f, "exoleg_step", Some((seq, s.t_s))) })?;
+        let st = self.exchange(s, seq)?;
         let cmd = self.command;
-        let call = if call == wire::CALL_RESET { "exoleg_reset" } else { "exoleg_step" };
-        self.status.take(call, st, || message_text(&cmd.message))?;
+        self.status.take("exoleg_step", st, || message_text(&cmd.message))?;
         output_of(&self.status.name, &self.command, st)
     }
 
@@ -366,14 +458,16 @@ impl DiscreteController for IsolatedPlugin {
 }
 
 impl Drop for IsolatedPlugin {
-    /// BYE (the child destroys its instance and exits), then the child reaped: killed if it
-    /// has not ended within a second.
+    /// BYE (the child destroys its instance and exits), then the child reaped: its process
+    /// group killed (what the plugin forked), the child with it if it has not ended within a
+    /// second.
     fn drop(&mut self) {
         if self.child.is_some() {
             let _ = self.sock.set_write_timeout(Some(Duration::from_millis(100)));
             let bye = Message::Bye { status: 0, message: String::new() };
-            let _ = self.send(&Header { kind: MsgType::Bye, seq: 0, sim_time_ns: 0 }, &bye);
-            self.reap(Duration::from_secs(1));
+            wire::encode(&Header { kind: MsgType::Bye, seq: 0, sim_time_ns: 0 }, &bye, &mut self.out);
+            let _ = self.sock.write(&self.out);
+            self.end_child(Duration::from_secs(1));
         }
     }
 }

@@ -13,7 +13,7 @@
 
 use super::CampaignLayout;
 use crate::error::{Error, Result};
-use crate::metrics::SafetySummary;
+use crate::metrics::{ControllerStopReport, SafetySummary};
 use crate::study::sweep::RunLine;
 use std::io::BufRead;
 use std::path::Path;
@@ -52,6 +52,17 @@ struct Outcome {
     induced: Vec<String>,
     safety: Option<SafetySummary>,
     error: Option<String>,
+    /// The controller crashed (`error` says how): its figures are the failsafe's.
+    crashed: bool,
+}
+
+impl Outcome {
+    /// A hazard the fault caused: a failed run or a crashed controller (unless the baseline's
+    /// crashed too), or a criterion it broke beyond the baseline.
+    fn fault_induced(&self, baseline: Option<&Outcome>) -> bool {
+        let both_crashed = self.crashed && baseline.is_some_and(|b| b.crashed);
+        (self.error.is_some() && !both_crashed) || !self.induced.is_empty()
+    }
 }
 
 /// Each verdict's use of its limit (see the module doc), with its pass.
@@ -83,11 +94,25 @@ fn uses(s: &SafetySummary, margin_deg: f64) -> Vec<(String, f64, bool)> {
         .collect()
 }
 
+/// A run whose controller crashed (a signal, an exception) under the campaign's failsafe: a
+/// hazard like a failed run, whatever its figures (they are the failsafe's, kept in
+/// `faults.csv`); its reason is the row's `error`.
+fn crashed(line: &RunLine, safety: Option<SafetySummary>) -> Option<Outcome> {
+    let why = line.summary.as_ref()?.controller_crash()?;
+    Some(Outcome { worst: "controller crashed".into(), error: Some(why), crashed: true, safety, ..Default::default() })
+}
+
 fn outcome(line: &RunLine, margin_deg: f64, baseline: Option<&Outcome>) -> Outcome {
     let Some(s) = line.summary.as_ref().and_then(|s| s.safety.clone()) else {
+        if let Some(o) = crashed(line, None) {
+            return o;
+        }
         let error = line.error.clone().unwrap_or_else(|| "no safety figures (not a leg run)".into());
         return Outcome { worst: "failed".into(), error: Some(error), ..Default::default() };
     };
+    if let Some(o) = crashed(line, Some(s.clone())) {
+        return o;
+    }
     let uses = uses(&s, margin_deg);
     let worst = uses.iter().max_by(|a, b| a.1.total_cmp(&b.1));
     let margin_pct = Some(worst.map_or(100.0, |w| 100.0 * (1.0 - w.1)));
@@ -109,6 +134,7 @@ fn outcome(line: &RunLine, margin_deg: f64, baseline: Option<&Outcome>) -> Outco
         induced,
         safety: Some(s),
         error: None,
+        crashed: false,
     }
 }
 
@@ -120,8 +146,8 @@ fn opt(x: Option<f64>) -> String {
     x.map_or(String::new(), |x| format!("{x}"))
 }
 
-/// faults.csv's row of run `i`.
-fn csv_row(layout: &CampaignLayout, i: usize, o: &Outcome) -> Vec<String> {
+/// faults.csv's row of run `i` (`stop`: its controller's stop, if any).
+fn csv_row(layout: &CampaignLayout, i: usize, o: &Outcome, stop: Option<&ControllerStopReport>) -> Vec<String> {
     let (mode, sev, onset) = match layout.case(i) {
         Some((m, s, k)) => {
             let l = &layout.modes[m];
@@ -134,6 +160,7 @@ fn csv_row(layout: &CampaignLayout, i: usize, o: &Outcome) -> Vec<String> {
         None => (String::new(), String::new()),
     };
     let status = match (&o.error, o.broken.is_empty()) {
+        (Some(_), _) if o.crashed => "crashed",
         (Some(_), _) => "failed",
         (None, true) => "ok",
         (None, false) => "hazard",
@@ -168,11 +195,12 @@ fn csv_row(layout: &CampaignLayout, i: usize, o: &Outcome) -> Vec<String> {
         fo(&|s| s.time_to_detection_s),
         fo(&|s| s.time_to_safe_state_s),
         fo(&|s| s.controller_stop_s),
+        stop.map_or(String::new(), |c| format!("{}: {}", c.cause.as_str(), c.message)),
         o.error.clone().unwrap_or_default(),
     ]
 }
 
-const CSV_HEADER: [&str; 27] = [
+const CSV_HEADER: [&str; 28] = [
     "index",
     "mode",
     "target",
@@ -199,6 +227,7 @@ const CSV_HEADER: [&str; 27] = [
     "time_to_detection_s",
     "time_to_safe_state_s",
     "controller_stop_s",
+    "controller_stop",
     "error",
 ];
 
@@ -217,13 +246,14 @@ struct ModeTally {
 }
 
 impl ModeTally {
-    fn add(&mut self, sev: usize, onset: usize, o: &Outcome) {
+    fn add(&mut self, sev: usize, onset: usize, o: &Outcome, baseline: Option<&Outcome>) {
         self.runs += 1;
-        let induced = o.error.is_some() || !o.induced.is_empty();
+        let induced = o.fault_induced(baseline);
         self.induced += usize::from(induced);
         let m = o.margin_pct.unwrap_or(f64::NEG_INFINITY);
         if self.worst.as_ref().is_none_or(|w| m < w.0) {
             let text = match (&o.error, o.uses.iter().max_by(|a, b| a.1.total_cmp(&b.1))) {
+                (Some(e), _) if o.crashed => short(e, 72),
                 (Some(e), _) => format!("failed: {}", short(e, 72)),
                 (None, Some(u)) => format!("{} at {:.0} % of its limit", u.0, 100.0 * u.1),
                 (None, None) => "no criterion".into(),
@@ -291,7 +321,8 @@ fn fmea_rows(layout: &CampaignLayout, tallies: &[ModeTally]) -> Vec<Vec<String>>
 fn markdown(rows: &[Vec<String>]) -> String {
     let mut s = String::new();
     for (i, r) in rows.iter().enumerate() {
-        s.push_str(&format!("| {} |\n", r.join(" | ")));
+        let cells: Vec<String> = r.iter().map(|c| crate::output::text::markdown(c)).collect();
+        s.push_str(&format!("| {} |\n", cells.join(" | ")));
         if i == 0 {
             s.push_str(&format!("|{}\n", "---|".repeat(r.len())));
         }
@@ -299,10 +330,12 @@ fn markdown(rows: &[Vec<String>]) -> String {
     s
 }
 
+/// A CSV of `rows`, every text cell by exoleg's one rule ([`crate::output::text::cell`]).
 fn write_csv(path: &Path, rows: impl Iterator<Item = Vec<String>>) -> Result<()> {
     let mut w = csv::Writer::from_writer(Vec::new());
     for r in rows {
-        w.write_record(&r).map_err(|e| werr(path)(e.to_string()))?;
+        let cells = r.iter().map(|c| crate::output::text::cell(c));
+        w.write_record(cells).map_err(|e| werr(path)(e.to_string()))?;
     }
     let bytes = w.into_inner().map_err(|e| werr(path)(e.to_string()))?;
     crate::output::write_atomic(path, &bytes)
@@ -335,15 +368,19 @@ pub fn write_outputs(
         let o = outcome(&line, margin_deg, baseline.as_ref());
         rep.runs += 1;
         rep.hazard_runs += usize::from(o.error.is_some() || !o.broken.is_empty());
-        rows.push(csv_row(layout, line.index, &o));
+        rows.push(csv_row(layout, line.index, &o, line.summary.as_ref().and_then(|s| s.controller_stop.as_ref())));
         match layout.case(line.index) {
             None => {
-                rep.baseline_broken = if o.error.is_some() { vec!["failed".into()] } else { o.broken.clone() };
+                rep.baseline_broken = match (&o.error, o.crashed) {
+                    (Some(_), true) => vec!["controller crashed".into()],
+                    (Some(_), false) => vec!["failed".into()],
+                    (None, _) => o.broken.clone(),
+                };
                 baseline = Some(o);
             }
             Some((m, s, k)) => {
-                rep.fault_induced_runs += usize::from(o.error.is_some() || !o.induced.is_empty());
-                tallies[m].add(s, k, &o);
+                rep.fault_induced_runs += usize::from(o.fault_induced(baseline.as_ref()));
+                tallies[m].add(s, k, &o, baseline.as_ref());
             }
         }
     }
@@ -352,6 +389,9 @@ pub fn write_outputs(
     write_csv(&dir.join("fmea.csv"), fmea.clone().into_iter())?;
     rep.fmea = markdown(&fmea);
     let base_text = match &baseline {
+        Some(b) if b.crashed => {
+            format!("the baseline's own controller crashed ({})", short(b.error.as_deref().unwrap_or(""), 60))
+        }
         Some(b) if b.error.is_some() => "the baseline failed".to_string(),
         Some(b) if b.broken.is_empty() => {
             format!("the baseline breaks none (worst margin {:.0} %)", b.margin_pct.unwrap_or(0.0))
@@ -360,11 +400,13 @@ pub fn write_outputs(
         None => "no baseline".into(),
     };
     rep.title = format!(
-        "{source}: {} faulted runs, {} with a fault-induced hazard; {base_text}",
+        "{}: {} faulted runs, {} with a fault-induced hazard; {base_text}",
+        crate::output::text::title_name(source),
         rep.runs.saturating_sub(1),
         rep.fault_induced_runs
     );
-    crate::output::write_atomic(&dir.join("fmea.md"), format!("# {}\n\n{}", rep.title, rep.fmea).as_bytes())?;
+    let heading = crate::output::text::terminal(&rep.title);
+    crate::output::write_atomic(&dir.join("fmea.md"), format!("# {heading}\n\n{}", rep.fmea).as_bytes())?;
     let names: Vec<String> = layout.modes.iter().map(|m| m.name()).collect();
     let cols: Vec<String> = (0..layout.onsets.len()).map(|o| layout.onset_label(o)).collect();
     let cells: Vec<Vec<Option<f64>>> =

@@ -121,6 +121,31 @@ impl CheckOptions {
         if !(2..=100).contains(&self.strides) {
             return Err(Error::input("gait-check", "--strides", format!("{}: give 2..=100", self.strides)));
         }
+        self.targets.check()
+    }
+}
+
+impl Targets {
+    /// Every target a trial could meet: finite, within its range, the stance's lowest below
+    /// its highest (an impossible target is bad input, exit 2, not every trial missing it).
+    pub fn check(&self) -> Result<()> {
+        let t = self;
+        for (flag, v, lo, hi) in [
+            ("--min-stance", t.stance.0, 0.0, 1.0),
+            ("--max-stance", t.stance.1, 0.0, 1.0),
+            ("--min-grf-r", t.min_grf_r, -1.0, 1.0),
+            ("--min-knee-moment-r", t.min_knee_moment_r, -1.0, 1.0),
+            ("--extensor-within-pct", t.extensor_within_pct, 0.0, 100.0),
+            ("--flexor-within", t.flexor_within, 0.0, 100.0),
+        ] {
+            if !(lo..=hi).contains(&v) {
+                return Err(Error::input("gait-check", flag, format!("{v}: give {lo}..={hi}")));
+            }
+        }
+        if t.stance.0 >= t.stance.1 {
+            let msg = format!("{} is not below --max-stance {}: no stance meets both", t.stance.0, t.stance.1);
+            return Err(Error::input("gait-check", "--min-stance", msg));
+        }
         Ok(())
     }
 }
@@ -294,12 +319,13 @@ fn discover(dirs: &[PathBuf]) -> Result<Vec<Trial>> {
     Ok(trials)
 }
 
-/// The CSV files of `dir` other than `subjects.csv`, sorted.
+/// The names in `dir` ending in `.csv` other than `subjects.csv`, sorted: whatever is there (a
+/// link, a FIFO, a device: the trial's reader says what it is and why it is refused, never
+/// "no file").
 fn folder_csvs(dir: &Path) -> Result<Vec<String>> {
     let rd = std::fs::read_dir(dir).map_err(|e| Error::Read { path: dir.to_path_buf(), message: e.to_string() })?;
     let mut out: Vec<String> = rd
         .flatten()
-        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
         .map(|e| e.file_name().to_string_lossy().to_string())
         .filter(|n| n.ends_with(".csv") && n != "subjects.csv")
         .collect();

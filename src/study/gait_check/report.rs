@@ -2,6 +2,7 @@
 //! (grouped by folder and age group, with the pass counts).
 
 use super::{Figures, Outcome, Report, TrialResult};
+use crate::output::text::terminal;
 use crate::reference::StrideSource;
 use std::fmt::Write;
 
@@ -44,13 +45,10 @@ pub const CSV_COLUMNS: [&str; 32] = [
 /// The muscle analysis's columns, last (empty without `wearer.muscles`).
 const METABOLIC_COLUMNS: usize = 5;
 
-/// A CSV field: quoted when it holds a comma, a quote or a line break.
+/// A text field: exoleg's one rule for text cells ([`crate::output::text`]: no formula, no
+/// control character), quoted when it holds a comma or a quote.
 fn field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
+    crate::output::text::csv_field(s)
 }
 
 fn check(v: Option<bool>) -> &'static str {
@@ -168,11 +166,11 @@ impl Report {
     fn line(&self, t: &TrialResult) -> String {
         let est = if t.row.as_ref().is_some_and(|r| r.stride_from == StrideSource::Estimated) { "*" } else { " " };
         let stride = t.row.as_ref().map_or(String::new(), |r| format!("{:.3}{est}", r.stride_s));
-        let head = format!("{:<24} {:>7}", t.name, stride);
+        let head = format!("{:<24} {:>7}", terminal(&t.name), stride);
         let f = match &t.outcome {
             Outcome::Ran(f) => f,
-            Outcome::BadInput(m) => return format!("{head}  BAD INPUT: {m}"),
-            Outcome::Failed(m) => return format!("{head}  FAILED: {m}"),
+            Outcome::BadInput(m) => return format!("{head}  BAD INPUT: {}", terminal(m)),
+            Outcome::Failed(m) => return format!("{head}  FAILED: {}", terminal(m)),
         };
         let (c, d, tg) = (&f.contact, &f.dataset, &self.targets);
         let misses = f.misses(tg);
@@ -247,8 +245,8 @@ impl Report {
                         .iter()
                         .filter(move |r| r.folder == folder && r.row.as_ref().map_or("", |r| r.group.as_str()) == g)
                 };
-                let label = if g.is_empty() { String::new() } else { format!(", {g}") };
-                let _ = writeln!(s, "-- {folder}{label}");
+                let label = if g.is_empty() { String::new() } else { format!(", {}", terminal(g)) };
+                let _ = writeln!(s, "-- {}{label}", terminal(folder));
                 for r in of() {
                     let _ = writeln!(s, "{}", self.line(r));
                 }
