@@ -210,6 +210,114 @@ pub struct WearerParams {
     /// 0.01..=1000.
     #[serde(skip_serializing_if = "is_one")]
     pub reserve_optimal_moment_nm: f64,
+    /// Who makes the wearer's knee, ankle and hip moments (issue 40): `"impedance"` (default:
+    /// the spring-dampers about the data above) or `"muscles"` (the leg's muscles, driven by a
+    /// nervous system with a neural delay through activation dynamics; `human::muscle_wearer`).
+    #[serde(skip_serializing_if = "is_default")]
+    pub model: WearerModel,
+    /// The muscle wearer is used to the device: it asks its muscles for the gait's moments less
+    /// the device's moment it feels (true, default); false: a new wearer who does not discount
+    /// it.
+    #[serde(skip_serializing_if = "is_true")]
+    pub adapted: bool,
+    /// The muscle wearer's neural delays (s): its feedback at the hip, the knee and the ankle
+    /// sees the joints' deviation (and the knee the device's moment) this long ago. A number
+    /// (every joint) or `[hip, knee, ankle]`. Default [0.005, 0.010, 0.020]: the neural
+    /// transmission delays of Geyer and Herr's (2010) reflex walking model; the stretch
+    /// reflexes measured in walking people start later (soleus 42 ms, Sinkjaer et al. 1996),
+    /// and with those this wearer does not hold the gait (README, "A wearer as strong and as
+    /// slow as a person"). Each 0..=0.3.
+    #[serde(skip_serializing_if = "is_default")]
+    pub neural_delay_s: NeuralDelay,
+    /// The muscle wearer's feedback stiffness in stance about the gait it learned, hip, knee
+    /// and ankle (N m/rad per kg of the subject). Default [0.7, 2.0, 3.0]: the joint
+    /// stiffness of walking people in stance (knee quasi-stiffness in weight acceptance, a
+    /// few N m/rad/kg, Shamaei et al. 2013; ankle 1.1-5.4 N m/rad/kg over stance, Lee and
+    /// Rouse; hip as in swing). Blended with the swing gains by the data's stance weight.
+    /// Each 0..=50.
+    #[serde(skip_serializing_if = "is_default_stance_stiffness")]
+    pub stance_stiffness_nm_per_rad_kg: [f64; 3],
+    /// Its feedback stiffness in swing (N m/rad/kg). Default [0.7, 0.05, 0.15] (hip 34-66,
+    /// knee 0-3.5, ankle 2.5-24 N m/rad in swing, van der Kooij et al. 2022). Each 0..=50.
+    #[serde(skip_serializing_if = "is_default_swing_stiffness")]
+    pub swing_stiffness_nm_per_rad_kg: [f64; 3],
+    /// Its feedback damping in stance (N m s/rad/kg). Default [0.045, 0.03, 0.03] (ankle
+    /// 0.016-0.08 N m s/rad/kg, Lee and Rouse; the knee taken alike). Each 0..=5.
+    #[serde(skip_serializing_if = "is_default_stance_damping")]
+    pub stance_damping_nm_s_per_rad_kg: [f64; 3],
+    /// Its feedback damping in swing (N m s/rad/kg). Default [0.045, 0.0015, 0.015] (hip
+    /// 1.9-4.6, knee 0.02-0.14, ankle 0.2-2.4 N m s/rad, van der Kooij et al. 2022). Each
+    /// 0..=5.
+    #[serde(skip_serializing_if = "is_default_swing_damping")]
+    pub swing_damping_nm_s_per_rad_kg: [f64; 3],
+}
+
+/// Who makes the wearer's joint moments (`wearer.model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum WearerModel {
+    /// Spring-dampers about the data's angles plus shares of the data's moments.
+    #[default]
+    Impedance,
+    /// The leg's muscles under a delayed nervous system.
+    Muscles,
+}
+
+/// Default `wearer.neural_delay_s` (hip, knee, ankle; s).
+pub const DEFAULT_NEURAL_DELAY_S: [f64; 3] = [0.005, 0.010, 0.020];
+
+/// `wearer.neural_delay_s`: one delay for every joint or one per joint (s).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum NeuralDelay {
+    /// The same delay at the hip, the knee and the ankle.
+    All(f64),
+    /// Hip, knee, ankle.
+    PerJoint([f64; 3]),
+}
+
+impl Default for NeuralDelay {
+    fn default() -> Self {
+        Self::PerJoint(DEFAULT_NEURAL_DELAY_S)
+    }
+}
+
+impl NeuralDelay {
+    /// Hip, knee and ankle delays (s).
+    pub fn per_joint(&self) -> [f64; 3] {
+        match *self {
+            Self::All(d) => [d; 3],
+            Self::PerJoint(d) => d,
+        }
+    }
+}
+/// Default `wearer.stance_stiffness_nm_per_rad_kg` (hip, knee, ankle).
+pub const DEFAULT_STANCE_STIFFNESS: [f64; 3] = [0.7, 2.0, 1.0];
+/// Default `wearer.swing_stiffness_nm_per_rad_kg` (hip, knee, ankle).
+pub const DEFAULT_SWING_STIFFNESS: [f64; 3] = [0.7, 0.3, 0.15];
+/// Default `wearer.stance_damping_nm_s_per_rad_kg` (hip, knee, ankle).
+pub const DEFAULT_STANCE_DAMPING: [f64; 3] = [0.045, 0.03, 0.03];
+/// Default `wearer.swing_damping_nm_s_per_rad_kg` (hip, knee, ankle).
+pub const DEFAULT_SWING_DAMPING: [f64; 3] = [0.045, 0.0015, 0.015];
+
+fn is_true(v: &bool) -> bool {
+    *v
+}
+
+fn is_default_stance_stiffness(v: &[f64; 3]) -> bool {
+    *v == DEFAULT_STANCE_STIFFNESS
+}
+
+fn is_default_swing_stiffness(v: &[f64; 3]) -> bool {
+    *v == DEFAULT_SWING_STIFFNESS
+}
+
+fn is_default_stance_damping(v: &[f64; 3]) -> bool {
+    *v == DEFAULT_STANCE_DAMPING
+}
+
+fn is_default_swing_damping(v: &[f64; 3]) -> bool {
+    *v == DEFAULT_SWING_DAMPING
 }
 
 fn is_default<T: Default + PartialEq>(v: &T) -> bool {
@@ -234,6 +342,13 @@ impl Default for WearerParams {
             muscle_cost: Default::default(),
             metabolic_model: Default::default(),
             reserve_optimal_moment_nm: 1.0,
+            model: WearerModel::Impedance,
+            adapted: true,
+            neural_delay_s: NeuralDelay::default(),
+            stance_stiffness_nm_per_rad_kg: DEFAULT_STANCE_STIFFNESS,
+            swing_stiffness_nm_per_rad_kg: DEFAULT_SWING_STIFFNESS,
+            stance_damping_nm_s_per_rad_kg: DEFAULT_STANCE_DAMPING,
+            swing_damping_nm_s_per_rad_kg: DEFAULT_SWING_DAMPING,
         }
     }
 }

@@ -62,5 +62,7 @@ impl HumanParams {
 
 pub mod body;
 pub mod events;
+pub mod muscle_wearer;
 pub use body::*;
 pub use events::{EventParams, GaitEvents};
+pub use muscle_wearer::{MuscleWearer, MuscleWearerSetup, WearerInputs};

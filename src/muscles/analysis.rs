@@ -199,10 +199,15 @@ impl Analysis {
 
     /// The metabolic rate (W) of muscle `i` at activation `a`.
     fn rate_w(&self, i: usize, a: f64) -> f64 {
+        self.rate_of(i, a, a)
+    }
+
+    /// The metabolic rate (W) of muscle `i` at activation `a` under excitation `u`.
+    fn rate_of(&self, i: usize, a: f64, u: f64) -> f64 {
         let (f, fl, k) = self.fibres[i];
         let p = &self.setup.set.muscles[i].params;
         let s = MuscleState {
-            excitation: a,
+            excitation: u,
             activation: a,
             length_norm: f.length_norm,
             velocity_m_s: f.velocity_per_s * p.optimal_fiber_length_m,
@@ -213,11 +218,21 @@ impl Analysis {
         self.setup.model.rate_w(&self.setup.constants[i], &s)
     }
 
-    /// The sample at `j`.
+    /// The sample at `j`: static optimisation of `j.moment_nm`, its activations as the
+    /// excitations.
     pub fn sample(&mut self, j: &Joints) -> Sample {
+        let (reserve, outside) = self.optimise(j);
+        let act = std::mem::take(&mut self.act);
+        let s = self.values(j, &act, &act, reserve, outside);
+        self.act = act;
+        s
+    }
+
+    /// Static optimisation at `j`: `self.act` the activations that make `j.moment_nm`; the
+    /// reserves (what the muscles cannot, N m) and how many muscles left their tables.
+    fn optimise(&mut self, j: &Joints) -> ([f64; 3], usize) {
         let (passive_moment, outside) = self.muscles_at(j);
         let b = [0, 1, 2].map(|k| j.moment_nm[k] - passive_moment[k]);
-        let n = self.act.len();
         self.w.iter_mut().for_each(|w| *w = 1.0);
         self.c.clear();
         let rho = self.setup.reserve_nm;
@@ -226,19 +241,48 @@ impl Analysis {
         if self.setup.cost == MuscleCost::Metabolic {
             out.reserve_nm = self.metabolic_descent(b);
         }
+        (out.reserve_nm, outside)
+    }
+
+    /// The excitations a nervous system sends for the moments `j.moment_nm` at the state of
+    /// `j` (static optimisation, into `out`); the reserves: what the muscles cannot (N m).
+    pub fn excitations(&mut self, j: &Joints, out: &mut [f64]) -> [f64; 3] {
+        let (reserve, _) = self.optimise(j);
+        out.copy_from_slice(&self.act);
+        reserve
+    }
+
+    /// The muscles' moments about hip, knee and ankle (N m; flexion and dorsiflexion positive)
+    /// at the state of `j` with activations `a`, passive forces included.
+    pub fn moments(&mut self, j: &Joints, a: &[f64]) -> [f64; 3] {
+        let (mut m, _) = self.muscles_at(j);
+        for (col, a) in self.columns.iter().zip(a) {
+            (0..3).for_each(|k| m[k] += col[k] * a);
+        }
+        m
+    }
+
+    /// The sample of muscles at activations `a` under excitations `u` (a muscle wearer's), at
+    /// the state of `j` (its moments the ones the muscles make), with the reserves `reserve`.
+    pub fn state_sample(&mut self, j: &Joints, a: &[f64], u: &[f64], reserve: [f64; 3]) -> Sample {
+        let (_, outside) = self.muscles_at(j);
+        self.values(j, a, u, reserve, outside)
+    }
+
+    /// The sample's values at the fibres now.
+    fn values(&self, j: &Joints, act: &[f64], exc: &[f64], reserve: [f64; 3], outside: usize) -> Sample {
         let mut values = Vec::with_capacity(self.setup.width());
         let (mut total_w, mut effort) = (0.0, 0.0);
-        for i in 0..n {
-            let a = self.act[i];
+        for (i, (&a, &u)) in act.iter().zip(exc).enumerate() {
             let (f, _, k) = self.fibres[i];
-            let rate = self.rate_w(i, a);
+            let rate = self.rate_of(i, a, u);
             total_w += rate;
             effort += a * a;
             let active = a * k / f.cos_pennation;
             values.extend_from_slice(&[a, f.length_norm, f.velocity_per_s, active, a * k + self.passive[i], rate]);
         }
         values.extend_from_slice(&[total_w, effort]);
-        values.extend_from_slice(&out.reserve_nm);
+        values.extend_from_slice(&reserve);
         values.extend_from_slice(&j.moment_nm);
         values.push(j.q_rad[0].to_degrees());
         values.push(outside as f64);

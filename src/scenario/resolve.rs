@@ -91,7 +91,8 @@ impl Ctx<'_> {
         leg: Option<&crate::leg::LegSpec>,
     ) -> Result<Option<Arc<crate::muscles::analysis::MuscleSetup>>> {
         let w = self.file.wearer.clone();
-        let (true, Some(leg)) = (w.muscles, leg) else { return Ok(None) };
+        let wanted = w.muscles || w.model == crate::human::WearerModel::Muscles;
+        let (true, Some(leg)) = (wanted, leg) else { return Ok(None) };
         let set = match &w.muscles_file {
             None => crate::muscles::MuscleSet::builtin()?,
             Some(f) => {
@@ -780,7 +781,7 @@ impl Scenario {
             (f.controller.sample_period_s > 0.0).then(|| (f.controller.sample_period_s / dt_s).round() as usize);
         let device = self.device_setup(leg.as_deref(), sample_every.is_some())?;
         let faults = self.faults(&plant, leg.is_some())?;
-        let model = Model {
+        let mut model = Model {
             faults,
             on_stop: f.controller.on_stop,
             compute: crate::sim::ComputeModel::of(&f.controller),
@@ -815,11 +816,16 @@ impl Scenario {
             sensors: f.sensors.clone(),
             cuff_limits: f.cuff_limits,
             safety: f.safety,
+            muscle_wearer: None,
             muscles: cx.muscles(leg.as_deref().map(|l| &*l.model))?,
             muscle_columns: f.output.muscles,
             ideal: (f.controller.kind == ControllerKind::IdealMoment)
                 .then(|| (f.controller.ideal, f.hip.subject_mass())),
         };
+        if f.wearer.model == crate::human::WearerModel::Muscles {
+            model.muscle_wearer =
+                Some(self.muscle_wearer_setup(res, model.muscles.as_ref(), model.reference.stride_s())?);
+        }
         Ok(ResolvedScenario {
             source_name: self.source_name.clone(),
             model: Arc::new(model),
@@ -828,6 +834,63 @@ impl Scenario {
             warnings: cx.warnings,
             path: self.path.clone(),
         })
+    }
+}
+
+impl Scenario {
+    /// The muscle wearer of `wearer.model = "muscles"` on the analysis's muscles, its gains
+    /// scaled by the subject's mass, its gait learned in [`Self::learning_scenario`].
+    fn muscle_wearer_setup(
+        &self,
+        res: &Resources,
+        muscles: Option<&Arc<crate::muscles::analysis::MuscleSetup>>,
+        stride_s: Option<f64>,
+    ) -> Result<Arc<crate::human::MuscleWearerSetup>> {
+        let w = &self.file.wearer;
+        let (Some(muscles), Some(stride_s)) = (muscles, stride_s) else {
+            return Err(Error::input(
+                &self.source_name,
+                "wearer.model",
+                "\"muscles\" needs the leg's muscles and a gait",
+            ));
+        };
+        let learning = self.learning_scenario(stride_s).resolve(res)?;
+        let feedforward = crate::sim::learn::learn_gait(learning.model).map_err(|e| {
+            Error::input(&self.source_name, "wearer.model", format!("the muscle wearer could not learn the gait: {e}"))
+        })?;
+        let m = self.file.hip.subject_mass();
+        let per_kg = |g: [f64; 3]| g.map(|k| k * m);
+        Ok(Arc::new(crate::human::MuscleWearerSetup {
+            muscles: muscles.clone(),
+            delay_s: w.neural_delay_s.per_joint(),
+            adapted: w.adapted,
+            stiffness_nm_per_rad: [per_kg(w.stance_stiffness_nm_per_rad_kg), per_kg(w.swing_stiffness_nm_per_rad_kg)],
+            damping_nm_s_per_rad: [per_kg(w.stance_damping_nm_s_per_rad_kg), per_kg(w.swing_damping_nm_s_per_rad_kg)],
+            feedforward: Arc::new(feedforward),
+        }))
+    }
+
+    /// The run the muscle wearer learns its gait in (its internal model): this walk with the
+    /// impedance wearer, the cylinder disconnected and no faults, for
+    /// [`crate::sim::learn::LEARNING_STRIDES`] strides, recording nothing.
+    fn learning_scenario(&self, stride_s: f64) -> Scenario {
+        let mut l = self.clone();
+        let f = &mut l.file;
+        f.actuator.mode = crate::hydraulics::ActuatorMode::Free;
+        f.controller = Default::default();
+        f.faults.clear();
+        f.wearer = crate::human::WearerParams {
+            knee_stiffness_nm_per_rad: f.wearer.knee_stiffness_nm_per_rad,
+            knee_damping_nm_s_per_rad: f.wearer.knee_damping_nm_s_per_rad,
+            knee_moment_share: f.wearer.knee_moment_share,
+            ankle_stiffness_nm_per_rad: f.wearer.ankle_stiffness_nm_per_rad,
+            ankle_damping_nm_s_per_rad: f.wearer.ankle_damping_nm_s_per_rad,
+            ankle_moment_share: f.wearer.ankle_moment_share,
+            ..Default::default()
+        };
+        f.output.muscles = false;
+        f.sim.duration_s = stride_s * crate::sim::learn::LEARNING_STRIDES as f64;
+        l
     }
 }
 

@@ -658,13 +658,61 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
     if f.controller.kind != ControllerKind::IdealMoment && !f.controller.ideal.is_default() {
         return Err(c.fail("controller.ideal", "has no effect without controller.kind = \"ideal_moment\""));
     }
+    for (joint, d) in ["hip", "knee", "ankle"].iter().zip(f.wearer.neural_delay_s.per_joint()) {
+        c.range(&format!("wearer.neural_delay_s ({joint})"), d, 0.0, 0.3)?;
+    }
+    let w = &f.wearer;
+    for (key, gains, hi) in [
+        ("stance_stiffness_nm_per_rad_kg", w.stance_stiffness_nm_per_rad_kg, 50.0),
+        ("swing_stiffness_nm_per_rad_kg", w.swing_stiffness_nm_per_rad_kg, 50.0),
+        ("stance_damping_nm_s_per_rad_kg", w.stance_damping_nm_s_per_rad_kg, 5.0),
+        ("swing_damping_nm_s_per_rad_kg", w.swing_damping_nm_s_per_rad_kg, 5.0),
+    ] {
+        for (joint, g) in ["hip", "knee", "ankle"].iter().zip(gains) {
+            c.range(&format!("wearer.{key} ({joint})"), g, 0.0, hi)?;
+        }
+    }
+    let muscle_wearer = w.model == crate::human::WearerModel::Muscles;
+    if !muscle_wearer {
+        let d = crate::human::WearerParams::default();
+        for (key, set) in [
+            ("wearer.adapted", w.adapted != d.adapted),
+            ("wearer.neural_delay_s", w.neural_delay_s != d.neural_delay_s),
+            (
+                "wearer.stance_stiffness_nm_per_rad_kg",
+                w.stance_stiffness_nm_per_rad_kg != d.stance_stiffness_nm_per_rad_kg,
+            ),
+            (
+                "wearer.swing_stiffness_nm_per_rad_kg",
+                w.swing_stiffness_nm_per_rad_kg != d.swing_stiffness_nm_per_rad_kg,
+            ),
+            (
+                "wearer.stance_damping_nm_s_per_rad_kg",
+                w.stance_damping_nm_s_per_rad_kg != d.stance_damping_nm_s_per_rad_kg,
+            ),
+            (
+                "wearer.swing_damping_nm_s_per_rad_kg",
+                w.swing_damping_nm_s_per_rad_kg != d.swing_damping_nm_s_per_rad_kg,
+            ),
+        ] {
+            if set {
+                return Err(c.fail(key, "has no effect without wearer.model = \"muscles\""));
+            }
+        }
+    }
+    if muscle_wearer && !carriage_gait {
+        return Err(c.fail(
+            "wearer.model",
+            "\"muscles\" drives the body with the leg's muscles: it needs a walking run (plant.kind = \"leg\", hip.mode = \"carriage\", reference.kind = \"gait\")",
+        ));
+    }
     if f.wearer.muscles && !carriage_gait {
         return Err(c.fail(
             "wearer.muscles",
             "the muscle analysis needs a walking run: plant.kind = \"leg\", hip.mode = \"carriage\" and reference.kind = \"gait\"",
         ));
     }
-    if !f.wearer.muscles {
+    if !f.wearer.muscles && !muscle_wearer {
         for (k, set) in [
             ("wearer.muscles_file", f.wearer.muscles_file.is_some()),
             ("output.muscles", f.output.muscles),

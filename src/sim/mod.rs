@@ -43,6 +43,7 @@
 
 mod compute;
 mod faults;
+pub mod learn;
 mod model;
 mod stage;
 mod state;
@@ -161,6 +162,8 @@ pub struct Simulation {
     compute: compute::ComputeRun,
     /// The wearer's muscle analysis (`wearer.muscles`).
     muscles: Option<crate::muscles::analysis::Analysis>,
+    /// The muscle wearer (`wearer.model = "muscles"`).
+    wearer: Option<crate::human::MuscleWearer>,
 }
 
 /// Build the plant of a model.
@@ -239,7 +242,10 @@ impl Simulation {
         let state = State { hyd: sc.cylinder.initial_state(), ..Default::default() };
         let output = matches!(control, ControlBlock::Sampled(_)).then(ControlOutput::default);
         let held = Held { output, events: Self::gait_events(&sc), ..Default::default() };
-        let muscles = sc.muscles.clone().map(crate::muscles::analysis::Analysis::new);
+        let wearer = sc.muscle_wearer.clone().map(crate::human::MuscleWearer::new);
+        // The muscle wearer's own muscles are the analysis (no static optimisation of moments
+        // it already makes).
+        let muscles = sc.muscles.clone().filter(|_| wearer.is_none()).map(crate::muscles::analysis::Analysis::new);
         Ok(Self {
             faults: faults::FaultRun::new(&sc.faults, sc.seed),
             compute: compute::ComputeRun::new(sc.seed),
@@ -263,6 +269,7 @@ impl Simulation {
             max_substeps: 1,
             substepped_steps: 0,
             muscles,
+            wearer,
         })
     }
 
@@ -657,7 +664,7 @@ impl Simulation {
 
     /// The body's forces on the carriage for the step from `t` (the human's other half, next
     /// to w1): its force laws at the body's state and the data's sample.
-    fn body_forces(&self, t: f64) -> Option<crate::human::BodyForces> {
+    fn body_forces(&mut self, t: f64) -> Option<crate::human::BodyForces> {
         let b = self.sc.leg()?.body.as_ref()?;
         let state = self.plant.body_state()?;
         let mut sample = b.targets.at(t);
@@ -672,7 +679,34 @@ impl Simulation {
             // The data's moment is extensor positive, the knee's torque flexion positive.
             f.device_knee_torque_nm = -ideal.moment_nm(sample.knee_moment_nm, *mass_kg);
         }
+        if let (true, crate::human::BodyTargets::Walking(w)) = (self.wearer.is_some(), &b.targets) {
+            let tilt = w.pelvic_tilt_at(t);
+            let pct = w.pct_at(t);
+            let x = crate::human::WearerInputs {
+                joints: crate::muscles::analysis::Joints {
+                    q_rad: [state.hip.0 + tilt.value, state.knee.0, state.ankle.0],
+                    qd_rad_s: [state.hip.1 + tilt.rate, state.knee.1, state.ankle.1],
+                    moment_nm: [0.0; 3],
+                },
+                body_rad: [state.hip.0, state.knee.0, state.ankle.0],
+                body_rate_rad_s: [state.hip.1, state.knee.1, state.ankle.1],
+                pct,
+                stance_weight: w.stance_weight_at_pct(pct),
+                device_torque_nm: self.device_knee_torque_nm(t) + f.device_knee_torque_nm,
+            };
+            let dt = self.sc.dt_s;
+            let m = self.wearer.as_mut().map(|w| w.step(t, dt, &x)).unwrap_or_default();
+            (f.hip_torque_nm, f.knee_torque_nm, f.ankle_torque_nm) = (m[0], m[1], m[2]);
+        }
         Some(f)
+    }
+
+    /// The cylinder's torque at the knee now (N m, flexion positive: what the plant applies).
+    fn device_knee_torque_nm(&self, t: f64) -> f64 {
+        let d = self.dynamics();
+        let v = self.plant.piston_at(t).velocity_m_s;
+        let arm = self.plant.leg_row().map_or(0.0, |l| l.moment_arm_m);
+        d.cylinder_force(&self.state, v, &d.reference_at(t, &self.held)) * arm
     }
 
     /// Advance one step with the run's own controller; the row of the step's start goes to
@@ -764,6 +798,9 @@ impl Simulation {
     /// hip's anatomical flexion, the thigh's angle plus the data's pelvic tilt) and the moments
     /// the body applies over the step.
     fn muscle_sample(&mut self, t: f64) -> Option<Arc<[f64]>> {
+        if let Some(w) = &self.wearer {
+            return w.sample_at(t).map(|s| Arc::from(&s.values[..]));
+        }
         let a = self.muscles.as_mut()?;
         let b = self.plant.body_state()?;
         let tilt = match self.sc.leg().and_then(|l| l.body.as_ref()).map(|b| &b.targets) {

@@ -83,6 +83,9 @@ pub struct Model {
     /// The ideal device (`controller.kind = "ideal_moment"`) and the subject's mass (kg) its
     /// bound is per.
     pub ideal: Option<(crate::control::ideal::IdealParams, f64)>,
+    /// The muscle wearer (`wearer.model = "muscles"`): its muscles make the body's hip, knee
+    /// and ankle moments.
+    pub muscle_wearer: Option<std::sync::Arc<crate::human::MuscleWearerSetup>>,
 }
 
 impl Model {
