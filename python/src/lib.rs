@@ -10,6 +10,7 @@
 mod controller;
 mod obs;
 mod stepwise;
+mod vector;
 
 use exoleg::record::{Layout, RecordSink, Row};
 use exoleg::study::{compare, robustness, shard, sweep};
@@ -435,6 +436,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Plan>()?;
     m.add_class::<obs::Obs>()?;
     m.add_class::<stepwise::Simulation>()?;
+    m.add_class::<vector::VecSimulation>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -1,0 +1,400 @@
+//! N runs stepped together (`exoleg._native.VecSimulation`, under `exoleg.gym.ExolegVectorEnv`):
+//! one call steps every run, on worker threads with the GIL released, each exactly as
+//! `exoleg.Simulation` + `exoleg.gym.ExolegEnv` step one (the same calls into the core, the
+//! same observation, reward and failure), with Gymnasium's next-step autoreset.
+//!
+//! The scenario is resolved once; the runs share its model (`Arc<Model>`), and an episode
+//! with another seed gets a copy of it with that seed (as `exoleg.Simulation.reset` does).
+//! Stepping allocates nothing in Rust: each run keeps its command, its results and its
+//! readings in place, and the numpy arrays are made once the threads are done.
+
+use crate::{load, py_err, ExoError, ScenarioError};
+use exoleg::control::{ControlOutput, N_READINGS};
+use exoleg::sim::{ControllerSource, Model, Simulation as CoreSimulation};
+use exoleg::{Error, Resources};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// Most runs one `VecSimulation` holds.
+pub const MAX_ENVS: usize = 1024;
+
+/// The reward of a step whose force error is not finite (a failed run): `ExolegEnv`'s.
+const FAILED_REWARD: f64 = -1e12;
+
+/// One run of a [`VecSimulation`] with its episode's state, this call's input and its results.
+struct Env {
+    /// The scenario's model (its own seed), shared by every run.
+    base: Arc<Model>,
+    /// This episode's model (`base`, or a copy with the episode's seed).
+    model: Arc<Model>,
+    /// The run (None before the first reset and after a failure).
+    sim: Option<CoreSimulation>,
+    /// The run's logged channels are named (at its first step, as `exoleg.Simulation` does).
+    named: bool,
+    /// The episode ended (done or failed): the next step resets it and ignores its action.
+    ended: bool,
+    /// Simulated time (s) of the failure, after one.
+    failed_t_s: f64,
+    /// Input: this step's valve command.
+    action: f64,
+    /// Input: what this call does with it.
+    work: Work,
+    /// The readings of the last sample, as the observation (a non-finite reading is 0).
+    obs: [f64; N_READINGS],
+    /// Output: the step's reward (0 for a reset).
+    reward: f64,
+    /// Output: the episode ended at this step.
+    terminated: bool,
+    /// Output: simulated time (s) after the step (of the failure, after one).
+    t_s: f64,
+    /// Output: why the episode failed at this step (`info["failure"]`).
+    failure: Option<String>,
+    /// Output: an error this call raises (not a failure of the episode: a broken input).
+    error: Option<Error>,
+}
+
+/// What a call does with a run.
+#[derive(Clone, Copy)]
+enum Work {
+    /// Nothing (a reset of other runs).
+    Idle,
+    /// Start an episode with this seed (a reset, or an autoreset).
+    Reset(u64),
+    /// Step with its action.
+    Step,
+}
+
+/// Why a step stopped its run.
+enum Stop {
+    /// The command is not finite (`ControllerError`'s message).
+    Command(String),
+    /// The core stopped it.
+    Core(Error),
+}
+
+/// What ends an episode with `info["failure"]` (`ExolegEnv` catches these classes:
+/// `DivergedError`, `ControllerError`); anything else is raised.
+fn is_failure(e: &Error) -> bool {
+    matches!(e, Error::Diverged { .. } | Error::Stiff { .. } | Error::ControllerStopped { .. })
+}
+
+impl Env {
+    fn new(base: Arc<Model>) -> Self {
+        Self {
+            model: base.clone(),
+            base,
+            sim: None,
+            named: false,
+            ended: true,
+            failed_t_s: 0.0,
+            action: 0.0,
+            work: Work::Idle,
+            obs: [0.0; N_READINGS],
+            reward: 0.0,
+            terminated: false,
+            t_s: 0.0,
+            failure: None,
+            error: None,
+        }
+    }
+
+    /// Keep the readings of a sample as the observation (`ExolegEnv`: `nan_to_num` to 0).
+    fn observe(&mut self, values: &[f64; N_READINGS]) {
+        for (o, v) in self.obs.iter_mut().zip(values) {
+            *o = if v.is_finite() { *v } else { 0.0 };
+        }
+    }
+
+    /// This call's work.
+    fn run(&mut self) {
+        self.failure = None;
+        self.error = None;
+        match std::mem::replace(&mut self.work, Work::Idle) {
+            Work::Reset(seed) => self.reset(seed),
+            Work::Step if self.ended => {
+                self.error = Some(Error::Usage("its episode ended: the step that resets it needs its seed".into()))
+            }
+            Work::Step => self.step(),
+            Work::Idle => {}
+        }
+    }
+
+    /// Start an episode with `seed` (`exoleg.Simulation.reset(seed)`): the first readings.
+    fn reset(&mut self, seed: u64) {
+        (self.sim, self.named, self.ended, self.reward, self.terminated) = (None, false, true, 0.0, false);
+        if seed != self.model.seed {
+            self.model = if seed == self.base.seed {
+                self.base.clone()
+            } else {
+                Arc::new(Model { seed, ..(*self.base).clone() })
+            };
+        }
+        let started = CoreSimulation::build(self.model.clone(), ControllerSource::External).and_then(|mut sim| {
+            let s = sim.sample()?;
+            Ok((sim, s.reading_values()))
+        });
+        match started {
+            Ok((sim, values)) => {
+                self.observe(&values);
+                self.t_s = sim.t_s();
+                self.sim = Some(sim);
+                self.ended = false;
+            }
+            Err(e) => self.error = Some(e),
+        }
+    }
+
+    /// Hold the action for one sample period (`exoleg.Simulation.step(command)`), then the
+    /// observation, reward and end as `ExolegEnv.step` makes them.
+    fn step(&mut self) {
+        let Some(sim) = self.sim.as_mut() else { return };
+        let u = self.action;
+        let stepped = if u.is_finite() {
+            Self::hold_and_read(sim, &mut self.named, u).map_err(Stop::Core)
+        } else {
+            Err(Stop::Command(format!(
+                "step(): the valve command is {u}: the run stops here (finish() writes nothing; reset() starts again)"
+            )))
+        };
+        match stepped {
+            Ok(Some(values)) => self.observe(&values),
+            Ok(None) => {}
+            Err(stop) => {
+                self.failed_t_s = sim.t_s();
+                self.sim = None;
+                match stop {
+                    Stop::Command(m) => self.failure = Some(m),
+                    Stop::Core(e) if is_failure(&e) => self.failure = Some(e.to_string()),
+                    Stop::Core(e) => self.error = Some(e),
+                }
+            }
+        }
+        let err = self.sim.as_ref().map_or(f64::NAN, |s| s.force_error_n());
+        self.reward = if err.is_finite() { -(err * err) } else { FAILED_REWARD };
+        self.t_s = self.sim.as_ref().map_or(self.failed_t_s, |s| s.t_s());
+        self.terminated = self.sim.as_ref().is_none_or(|s| s.done());
+        self.ended = self.terminated;
+    }
+
+    /// The core of a step: hold `u` to the next sample instant and read it (None at the end of
+    /// the run: the last readings stay).
+    fn hold_and_read(sim: &mut CoreSimulation, named: &mut bool, u: f64) -> Result<Option<[f64; N_READINGS]>, Error> {
+        if !*named {
+            sim.set_log_names(Vec::new())?;
+            *named = true;
+        }
+        if sim.done() {
+            return Err(Error::Usage("the run is done: reset it".into()));
+        }
+        sim.set_log(&[]);
+        sim.hold(ControlOutput::command(u))?;
+        sim.advance(&mut exoleg::record::NullSink)?;
+        while !sim.done() && !sim.is_sample_step() {
+            sim.advance(&mut exoleg::record::NullSink)?;
+        }
+        if sim.done() {
+            return Ok(None);
+        }
+        Ok(Some(sim.sample()?.reading_values()))
+    }
+}
+
+/// N runs of one scenario stepped together on worker threads (`exoleg.gym.ExolegVectorEnv`
+/// wraps it). `reset(seeds, mask)` starts episodes; `step(actions, seeds)` steps every run
+/// whose episode goes on and resets, with `seeds`, those whose episode ended at the last step
+/// (their action is ignored: Gymnasium's next-step autoreset). Each run is exactly an
+/// `exoleg.Simulation` stepped by `exoleg.gym.ExolegEnv`.
+#[pyclass(module = "exoleg._native")]
+pub struct VecSimulation {
+    envs: Vec<Env>,
+    /// The worker threads (None: the calling thread steps every run, GIL released).
+    pool: Option<rayon::ThreadPool>,
+    /// Runs per thread.
+    chunk: usize,
+}
+
+impl VecSimulation {
+    /// Run every env's call (`Env::run`), the GIL released, the envs split across the threads;
+    /// then raise the first error.
+    fn run_all(&mut self, py: Python<'_>) -> PyResult<()> {
+        let (envs, chunk, pool) = (&mut self.envs, self.chunk, self.pool.as_ref());
+        py.allow_threads(|| match pool {
+            Some(p) => p.install(|| envs.par_chunks_mut(chunk).for_each(|c| c.iter_mut().for_each(Env::run))),
+            None => envs.iter_mut().for_each(Env::run),
+        });
+        match self.envs.iter_mut().enumerate().find_map(|(i, e)| e.error.take().map(|e| (i, e))) {
+            Some((i, e)) => {
+                let e = py_err(e);
+                Err(PyErr::from_type_bound(e.get_type_bound(py), format!("env {i}: {}", e.value_bound(py))))
+            }
+            None => Ok(()),
+        }
+    }
+
+    /// Give each run its work: a reset with its seed in `seeds` (one a run) where `reset(i)`,
+    /// else `otherwise`.
+    fn set_work(
+        &mut self,
+        seeds: &PyReadonlyArray1<'_, u64>,
+        reset: impl Fn(usize, &Env) -> bool,
+        otherwise: Work,
+    ) -> PyResult<()> {
+        let s = seeds.as_array();
+        if s.len() != self.envs.len() {
+            return Err(PyValueError::new_err(format!("seeds: expected {} of them, got {}", self.envs.len(), s.len())));
+        }
+        for (i, (e, seed)) in self.envs.iter_mut().zip(s.iter()).enumerate() {
+            e.work = if reset(i, e) { Work::Reset(*seed) } else { otherwise };
+        }
+        Ok(())
+    }
+
+    /// The observations (N, n) and times (N,) of the runs, as new numpy arrays.
+    fn observations<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+        let obs = PyArray2::<f64>::zeros_bound(py, [self.envs.len(), N_READINGS], false);
+        {
+            let mut w = obs.readwrite();
+            let out = w.as_slice_mut()?;
+            for (row, e) in out.chunks_exact_mut(N_READINGS).zip(&self.envs) {
+                row.copy_from_slice(&e.obs);
+            }
+        }
+        Ok((obs, PyArray1::from_iter_bound(py, self.envs.iter().map(|e| e.t_s))))
+    }
+}
+
+/// What `VecSimulation.step` returns: observations (N, n), rewards (N,), terminated (N,),
+/// simulated times (N,, s), failures [(i, message)], and how many episodes ended.
+type StepOut<'py> = (
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<f64>>,
+    Vec<(usize, String)>,
+    usize,
+);
+
+#[pymethods]
+impl VecSimulation {
+    /// `num_envs` runs (1..=1024) of the scenario on `threads` worker threads (0: one per
+    /// core; at most one per run). Every run waits for `reset()`.
+    #[new]
+    #[pyo3(signature = (num_envs, threads=0, path=None, toml_text=None, scenario_json=None, overrides_json=None))]
+    fn new(
+        py: Python<'_>,
+        num_envs: usize,
+        threads: usize,
+        path: Option<String>,
+        toml_text: Option<String>,
+        scenario_json: Option<String>,
+        overrides_json: Option<String>,
+    ) -> PyResult<Self> {
+        if !(1..=MAX_ENVS).contains(&num_envs) {
+            return Err(ScenarioError::new_err(format!("num_envs: {num_envs} is out of range (1..={MAX_ENVS})")));
+        }
+        let sc = py
+            .allow_threads(|| load(path, toml_text, scenario_json, overrides_json)?.resolve(&Resources::new()))
+            .map_err(py_err)?;
+        if sc.model.sample_every.is_none() {
+            return Err(ScenarioError::new_err(format!(
+                "{}: controller.sample_period_s: a loop you own runs sampled: set it > 0 (e.g. 0.001)",
+                sc.source_name
+            )));
+        }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = if threads == 0 { cores } else { threads }.min(num_envs);
+        let pool = (threads > 1)
+            .then(|| {
+                rayon::ThreadPoolBuilder::new().num_threads(threads).thread_name(|i| format!("exoleg-vec-{i}")).build()
+            })
+            .transpose()
+            .map_err(|e| ExoError::new_err(format!("the worker threads: {e}")))?;
+        let mut envs: Vec<Env> = (0..num_envs).map(|_| Env::new(sc.model.clone())).collect();
+        // Every run starts an episode with the scenario's own seed (as `exoleg.Simulation`).
+        envs.iter_mut().for_each(|e| e.work = Work::Reset(e.base.seed));
+        let mut v = Self { envs, pool, chunk: num_envs.div_ceil(threads) };
+        crate::guard(|| v.run_all(py))?;
+        Ok(v)
+    }
+
+    /// Number of runs.
+    #[getter]
+    fn num_envs(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Worker threads stepping them (1: the calling thread, GIL released).
+    #[getter]
+    fn threads(&self) -> usize {
+        self.pool.as_ref().map_or(1, |p| p.current_num_threads())
+    }
+
+    /// What the controller is told (sample period, valve limit, nominal model), as JSON.
+    #[getter]
+    fn info_json(&self) -> String {
+        crate::stepwise::info_json(&self.envs[0].base).to_string()
+    }
+
+    /// The runs whose episode ended at the last step (the next step resets them).
+    fn ended(&self) -> Vec<usize> {
+        self.envs.iter().enumerate().filter(|(_, e)| e.ended).map(|(i, _)| i).collect()
+    }
+
+    /// Start a new episode of every run (of those where `mask` is true) with its seed in
+    /// `seeds` (uint64, one a run); returns the observations of every run (N, n) and their
+    /// simulated times (N,, s).
+    #[pyo3(signature = (seeds, mask=None))]
+    fn reset<'py>(
+        &mut self,
+        py: Python<'py>,
+        seeds: PyReadonlyArray1<'py, u64>,
+        mask: Option<PyReadonlyArray1<'py, bool>>,
+    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+        let mask = mask.map(|m| m.as_array().to_vec());
+        if mask.as_ref().is_some_and(|m| m.len() != self.envs.len()) {
+            return Err(PyValueError::new_err(format!("mask: expected {} flags", self.envs.len())));
+        }
+        self.set_work(&seeds, |i, _| mask.as_ref().is_none_or(|m| m[i]), Work::Idle)?;
+        crate::guard(|| self.run_all(py))?;
+        self.observations(py)
+    }
+
+    /// Hold each run's action (`actions`: float64, shape (N, 1) or (N,), the valve commands)
+    /// for one sample period, and reset with its seed in `seeds` (uint64, one a run; needed
+    /// when an episode ended at the last step) each run whose episode ended. Returns the
+    /// observations (N, n), rewards (N,, N^2), terminated (N,), simulated times (N,, s), the
+    /// failures of this step [(i, message)] and how many episodes ended.
+    #[pyo3(signature = (actions, seeds=None))]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        actions: PyReadonlyArrayDyn<'py, f64>,
+        seeds: Option<PyReadonlyArray1<'py, u64>>,
+    ) -> PyResult<StepOut<'py>> {
+        let n = self.envs.len();
+        let shape = actions.shape();
+        if !(shape == [n] || shape == [n, 1]) {
+            return Err(PyValueError::new_err(format!(
+                "actions: expected one valve command per environment (shape ({n}, 1) or ({n},)), got shape {shape:?}"
+            )));
+        }
+        for (e, a) in self.envs.iter_mut().zip(actions.as_array().iter()) {
+            e.action = *a;
+        }
+        match &seeds {
+            Some(s) => self.set_work(s, |_, e| e.ended, Work::Step)?,
+            None => self.envs.iter_mut().for_each(|e| e.work = Work::Step),
+        }
+        crate::guard(|| self.run_all(py))?;
+        let (obs, t_s) = self.observations(py)?;
+        let rewards = PyArray1::from_iter_bound(py, self.envs.iter().map(|e| e.reward));
+        let terminated = PyArray1::from_iter_bound(py, self.envs.iter().map(|e| e.terminated));
+        let failures: Vec<(usize, String)> =
+            self.envs.iter_mut().enumerate().filter_map(|(i, e)| e.failure.take().map(|f| (i, f))).collect();
+        let ended = self.envs.iter().filter(|e| e.terminated).count();
+        Ok((obs, rewards, terminated, t_s, failures, ended))
+    }
+}
