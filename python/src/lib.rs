@@ -8,6 +8,7 @@
 //! The Python layer (`pysrc/exoleg/__init__.py`) wraps the results.
 
 mod controller;
+mod crew;
 mod obs;
 mod stepwise;
 mod vector;

@@ -8,6 +8,7 @@
 //! Stepping allocates nothing in Rust: each run keeps its command, its results and its
 //! readings in place, and the numpy arrays are made once the threads are done.
 
+use crate::crew::Crew;
 use crate::{load, py_err, ExoError, ScenarioError};
 use exoleg::control::{ControlOutput, N_READINGS};
 use exoleg::sim::{ControllerSource, Model, Simulation as CoreSimulation};
@@ -15,7 +16,6 @@ use exoleg::{Error, Resources};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use rayon::prelude::*;
 use std::sync::Arc;
 
 /// Most runs one `VecSimulation` holds.
@@ -209,23 +209,32 @@ impl Env {
 /// `exoleg.Simulation` stepped by `exoleg.gym.ExolegEnv`.
 #[pyclass(module = "exoleg._native")]
 pub struct VecSimulation {
-    envs: Vec<Env>,
-    /// The worker threads (None: the calling thread steps every run, GIL released).
-    pool: Option<rayon::ThreadPool>,
-    /// Runs per thread.
-    chunk: usize,
+    /// The runs, split across the threads (the calling thread's chunk first).
+    crew: Crew<Env>,
+    /// Number of runs.
+    n: usize,
+    /// The scenario's model.
+    base: Arc<Model>,
 }
 
+/// New numpy arrays of one step: observations (N, n), times (N,, s), rewards (N,, N^2),
+/// terminated (N,).
+type Arrays<'py> =
+    (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<bool>>);
+
 impl VecSimulation {
-    /// Run every env's call (`Env::run`), the GIL released, the envs split across the threads;
-    /// then raise the first error.
+    /// Run every run's work (`Env::run`), the GIL released, the runs split across the
+    /// threads; then raise the first error.
     fn run_all(&mut self, py: Python<'_>) -> PyResult<()> {
-        let (envs, chunk, pool) = (&mut self.envs, self.chunk, self.pool.as_ref());
-        py.allow_threads(|| match pool {
-            Some(p) => p.install(|| envs.par_chunks_mut(chunk).for_each(|c| c.iter_mut().for_each(Env::run))),
-            None => envs.iter_mut().for_each(Env::run),
+        let crew = &self.crew;
+        py.allow_threads(|| crew.run()).map_err(|m| ExoError::new_err(format!("internal error (a panic): {m}")))?;
+        let mut first = None;
+        self.crew.for_each(|i, e| {
+            if let (None, Some(err)) = (&first, e.error.take()) {
+                first = Some((i, err));
+            }
         });
-        match self.envs.iter_mut().enumerate().find_map(|(i, e)| e.error.take().map(|e| (i, e))) {
+        match first {
             Some((i, e)) => {
                 let e = py_err(e);
                 Err(PyErr::from_type_bound(e.get_type_bound(py), format!("env {i}: {}", e.value_bound(py))))
@@ -243,26 +252,30 @@ impl VecSimulation {
         otherwise: Work,
     ) -> PyResult<()> {
         let s = seeds.as_array();
-        if s.len() != self.envs.len() {
-            return Err(PyValueError::new_err(format!("seeds: expected {} of them, got {}", self.envs.len(), s.len())));
+        if s.len() != self.n {
+            return Err(PyValueError::new_err(format!("seeds: expected {} of them, got {}", self.n, s.len())));
         }
-        for (i, (e, seed)) in self.envs.iter_mut().zip(s.iter()).enumerate() {
-            e.work = if reset(i, e) { Work::Reset(*seed) } else { otherwise };
-        }
+        self.crew.for_each(|i, e| e.work = if reset(i, e) { Work::Reset(s[i]) } else { otherwise });
         Ok(())
     }
 
-    /// The observations (N, n) and times (N,) of the runs, as new numpy arrays.
-    fn observations<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
-        let obs = PyArray2::<f64>::zeros_bound(py, [self.envs.len(), N_READINGS], false);
+    /// The runs' results as new numpy arrays, and `each(i, run)` called on every run.
+    fn arrays<'py>(&self, py: Python<'py>, mut each: impl FnMut(usize, &mut Env)) -> PyResult<Arrays<'py>> {
+        let obs = PyArray2::<f64>::zeros_bound(py, [self.n, N_READINGS], false);
+        let t_s = PyArray1::<f64>::zeros_bound(py, self.n, false);
+        let rewards = PyArray1::<f64>::zeros_bound(py, self.n, false);
+        let terminated = PyArray1::<bool>::zeros_bound(py, self.n, false);
         {
-            let mut w = obs.readwrite();
-            let out = w.as_slice_mut()?;
-            for (row, e) in out.chunks_exact_mut(N_READINGS).zip(&self.envs) {
-                row.copy_from_slice(&e.obs);
-            }
+            let (mut o, mut t, mut r, mut d) =
+                (obs.readwrite(), t_s.readwrite(), rewards.readwrite(), terminated.readwrite());
+            let (o, t, r, d) = (o.as_slice_mut()?, t.as_slice_mut()?, r.as_slice_mut()?, d.as_slice_mut()?);
+            self.crew.for_each(|i, e| {
+                o[i * N_READINGS..(i + 1) * N_READINGS].copy_from_slice(&e.obs);
+                (t[i], r[i], d[i]) = (e.t_s, e.reward, e.terminated);
+                each(i, e);
+            });
         }
-        Ok((obs, PyArray1::from_iter_bound(py, self.envs.iter().map(|e| e.t_s))))
+        Ok((obs, t_s, rewards, terminated))
     }
 }
 
@@ -279,8 +292,9 @@ type StepOut<'py> = (
 
 #[pymethods]
 impl VecSimulation {
-    /// `num_envs` runs (1..=1024) of the scenario on `threads` worker threads (0: one per
-    /// core; at most one per run). Every run waits for `reset()`.
+    /// `num_envs` runs (1..=1024) of the scenario on `threads` threads, the calling one
+    /// included (0: one per core; at most one per run). Every run starts an episode with the
+    /// scenario's own seed (as `exoleg.Simulation` does).
     #[new]
     #[pyo3(signature = (num_envs, threads=0, path=None, toml_text=None, scenario_json=None, overrides_json=None))]
     fn new(
@@ -305,17 +319,12 @@ impl VecSimulation {
             )));
         }
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let threads = if threads == 0 { cores } else { threads }.min(num_envs);
-        let pool = (threads > 1)
-            .then(|| {
-                rayon::ThreadPoolBuilder::new().num_threads(threads).thread_name(|i| format!("exoleg-vec-{i}")).build()
-            })
-            .transpose()
-            .map_err(|e| ExoError::new_err(format!("the worker threads: {e}")))?;
-        let mut envs: Vec<Env> = (0..num_envs).map(|_| Env::new(sc.model.clone())).collect();
-        // Every run starts an episode with the scenario's own seed (as `exoleg.Simulation`).
-        envs.iter_mut().for_each(|e| e.work = Work::Reset(e.base.seed));
-        let mut v = Self { envs, pool, chunk: num_envs.div_ceil(threads) };
+        let threads = if threads == 0 { cores } else { threads };
+        let base = sc.model.clone();
+        let envs = (0..num_envs).map(|_| Env { work: Work::Reset(base.seed), ..Env::new(base.clone()) }).collect();
+        let crew =
+            Crew::new(envs, threads, Env::run).map_err(|e| ExoError::new_err(format!("the worker threads: {e}")))?;
+        let mut v = Self { crew, n: num_envs, base };
         crate::guard(|| v.run_all(py))?;
         Ok(v)
     }
@@ -323,24 +332,30 @@ impl VecSimulation {
     /// Number of runs.
     #[getter]
     fn num_envs(&self) -> usize {
-        self.envs.len()
+        self.n
     }
 
-    /// Worker threads stepping them (1: the calling thread, GIL released).
+    /// Threads stepping them, the calling one included.
     #[getter]
     fn threads(&self) -> usize {
-        self.pool.as_ref().map_or(1, |p| p.current_num_threads())
+        self.crew.threads()
     }
 
     /// What the controller is told (sample period, valve limit, nominal model), as JSON.
     #[getter]
     fn info_json(&self) -> String {
-        crate::stepwise::info_json(&self.envs[0].base).to_string()
+        crate::stepwise::info_json(&self.base).to_string()
     }
 
-    /// The runs whose episode ended at the last step (the next step resets them).
+    /// The runs whose episode ended (the next step resets them).
     fn ended(&self) -> Vec<usize> {
-        self.envs.iter().enumerate().filter(|(_, e)| e.ended).map(|(i, _)| i).collect()
+        let mut out = Vec::new();
+        self.crew.for_each(|i, e| {
+            if e.ended {
+                out.push(i)
+            }
+        });
+        out
     }
 
     /// Start a new episode of every run (of those where `mask` is true) with its seed in
@@ -354,12 +369,13 @@ impl VecSimulation {
         mask: Option<PyReadonlyArray1<'py, bool>>,
     ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
         let mask = mask.map(|m| m.as_array().to_vec());
-        if mask.as_ref().is_some_and(|m| m.len() != self.envs.len()) {
-            return Err(PyValueError::new_err(format!("mask: expected {} flags", self.envs.len())));
+        if mask.as_ref().is_some_and(|m| m.len() != self.n) {
+            return Err(PyValueError::new_err(format!("mask: expected {} flags", self.n)));
         }
         self.set_work(&seeds, |i, _| mask.as_ref().is_none_or(|m| m[i]), Work::Idle)?;
         crate::guard(|| self.run_all(py))?;
-        self.observations(py)
+        let (obs, t_s, _, _) = self.arrays(py, |_, _| {})?;
+        Ok((obs, t_s))
     }
 
     /// Hold each run's action (`actions`: float64, shape (N, 1) or (N,), the valve commands)
@@ -374,27 +390,28 @@ impl VecSimulation {
         actions: PyReadonlyArrayDyn<'py, f64>,
         seeds: Option<PyReadonlyArray1<'py, u64>>,
     ) -> PyResult<StepOut<'py>> {
-        let n = self.envs.len();
+        let n = self.n;
         let shape = actions.shape();
         if !(shape == [n] || shape == [n, 1]) {
             return Err(PyValueError::new_err(format!(
                 "actions: expected one valve command per environment (shape ({n}, 1) or ({n},)), got shape {shape:?}"
             )));
         }
-        for (e, a) in self.envs.iter_mut().zip(actions.as_array().iter()) {
-            e.action = *a;
-        }
+        let a = actions.as_array();
+        let mut next = a.iter();
+        self.crew.for_each(|_, e| e.action = next.next().copied().unwrap_or(f64::NAN));
         match &seeds {
             Some(s) => self.set_work(s, |_, e| e.ended, Work::Step)?,
-            None => self.envs.iter_mut().for_each(|e| e.work = Work::Step),
+            None => self.crew.for_each(|_, e| e.work = Work::Step),
         }
         crate::guard(|| self.run_all(py))?;
-        let (obs, t_s) = self.observations(py)?;
-        let rewards = PyArray1::from_iter_bound(py, self.envs.iter().map(|e| e.reward));
-        let terminated = PyArray1::from_iter_bound(py, self.envs.iter().map(|e| e.terminated));
-        let failures: Vec<(usize, String)> =
-            self.envs.iter_mut().enumerate().filter_map(|(i, e)| e.failure.take().map(|f| (i, f))).collect();
-        let ended = self.envs.iter().filter(|e| e.terminated).count();
+        let (mut failures, mut ended) = (Vec::new(), 0);
+        let (obs, t_s, rewards, terminated) = self.arrays(py, |i, e| {
+            ended += usize::from(e.terminated);
+            if let Some(f) = e.failure.take() {
+                failures.push((i, f));
+            }
+        })?;
         Ok((obs, rewards, terminated, t_s, failures, ended))
     }
 }
