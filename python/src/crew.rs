@@ -85,6 +85,9 @@ pub struct Crew<T: Send + 'static> {
     f: fn(&mut T),
     shared: Arc<Shared>,
     workers: Vec<(Thread, JoinHandle<()>)>,
+    /// The process that started the workers (a forked child has none of them: it runs every
+    /// chunk itself).
+    pid: u32,
 }
 
 impl<T: Send + 'static> Crew<T> {
@@ -104,7 +107,7 @@ impl<T: Send + 'static> Crew<T> {
             caller: Mutex::new(None),
             panic: Mutex::new(None),
         });
-        let mut crew = Self { chunks, f, shared, workers: Vec::new() };
+        let mut crew = Self { chunks, f, shared, workers: Vec::new(), pid: std::process::id() };
         for (k, chunk) in crew.chunks.iter().enumerate().skip(1) {
             let (shared, chunk) = (crew.shared.clone(), chunk.clone());
             let h =
@@ -122,6 +125,9 @@ impl<T: Send + 'static> Crew<T> {
     /// Apply `f` to every item once, the chunks in parallel (this thread takes the first);
     /// returns when all are done. A panic in `f` is returned as its message.
     pub fn run(&self) -> Result<(), String> {
+        if std::process::id() != self.pid {
+            return self.chunks.iter().try_for_each(|c| run_chunk(c, self.f));
+        }
         let s = &self.shared;
         if !self.workers.is_empty() {
             *lock(&s.caller) = Some(std::thread::current());

@@ -279,6 +279,9 @@ impl VecSimulation {
     }
 }
 
+/// What `VecSimulation.reset` returns: observations (N, n), simulated times (N,, s).
+type ResetOut<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
 /// What `VecSimulation.step` returns: observations (N, n), rewards (N,), terminated (N,),
 /// simulated times (N,, s), failures [(i, message)], and how many episodes ended.
 type StepOut<'py> = (
@@ -367,7 +370,7 @@ impl VecSimulation {
         py: Python<'py>,
         seeds: PyReadonlyArray1<'py, u64>,
         mask: Option<PyReadonlyArray1<'py, bool>>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+    ) -> PyResult<ResetOut<'py>> {
         let mask = mask.map(|m| m.as_array().to_vec());
         if mask.as_ref().is_some_and(|m| m.len() != self.n) {
             return Err(PyValueError::new_err(format!("mask: expected {} flags", self.n)));

@@ -192,3 +192,29 @@ def test_help_and_threads():
     with pytest.raises(exoleg.ScenarioError, match="sample_period_s"):
         exogym.ExolegVectorEnv(TREADMILL, dict(SHORT, **{"controller.sample_period_s": 0.0}), 2)
     assert repr(vec) == "ExolegVectorEnv(num_envs=2)"
+
+
+def test_close_and_a_forked_child():
+    n = 4
+    vec = exogym.ExolegVectorEnv(TREADMILL, SHORT, n, threads=2)
+    vec.reset(seed=2)
+    a = np.full((n, 1), 1e-4)
+    if hasattr(os, "fork"):
+        # A child forked after the worker threads started has none: it steps every run itself.
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover (the child)
+            try:
+                os.write(w, vec.step(a)[0].tobytes())
+            finally:
+                os._exit(0)
+        os.close(w)
+        got = b""
+        while chunk := os.read(r, 1 << 16):
+            got += chunk
+        os.close(r)
+        os.waitpid(pid, 0)
+        assert got == vec.step(a)[0].tobytes()
+    vec.close()
+    with pytest.raises(exoleg.ExoError, match="closed"):
+        vec.step(a)

@@ -266,5 +266,16 @@ class ExolegVectorEnv(VectorEnv):
             infos["failure"], infos["_failure"] = why, has
         return obs, rewards, terminated, np.zeros(self.num_envs, dtype=np.bool_), infos
 
+    def close_extras(self, **kwargs: Any) -> None:
+        """Let the runs and their worker threads go (``close()``); later calls raise."""
+        self._native = _Closed()
+
     def __repr__(self) -> str:
         return f"ExolegVectorEnv(num_envs={self.num_envs})"
+
+
+class _Closed:
+    """What a closed :class:`ExolegVectorEnv` steps: every call raises."""
+
+    def __getattr__(self, name: str) -> Any:
+        raise exoleg.ExoError("the environment is closed")
