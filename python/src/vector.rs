@@ -13,7 +13,7 @@ use crate::{load, py_err, ExoError, ScenarioError};
 use exoleg::control::{ControlOutput, N_READINGS};
 use exoleg::sim::{ControllerSource, Model, Simulation as CoreSimulation};
 use exoleg::{Error, Resources};
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use std::sync::Arc;
@@ -265,16 +265,15 @@ impl VecSimulation {
         let t_s = PyArray1::<f64>::zeros_bound(py, self.n, false);
         let rewards = PyArray1::<f64>::zeros_bound(py, self.n, false);
         let terminated = PyArray1::<bool>::zeros_bound(py, self.n, false);
-        {
-            let (mut o, mut t, mut r, mut d) =
-                (obs.readwrite(), t_s.readwrite(), rewards.readwrite(), terminated.readwrite());
-            let (o, t, r, d) = (o.as_slice_mut()?, t.as_slice_mut()?, r.as_slice_mut()?, d.as_slice_mut()?);
-            self.crew.for_each(|i, e| {
-                o[i * N_READINGS..(i + 1) * N_READINGS].copy_from_slice(&e.obs);
-                (t[i], r[i], d[i]) = (e.t_s, e.reward, e.terminated);
-                each(i, e);
-            });
-        }
+        // SAFETY: the arrays were just made, contiguous, and nothing else refers to them yet:
+        // these are the only views of their data (no borrow tracking, which allocates).
+        let (o, t, r, d) =
+            unsafe { (obs.as_slice_mut()?, t_s.as_slice_mut()?, rewards.as_slice_mut()?, terminated.as_slice_mut()?) };
+        self.crew.for_each(|i, e| {
+            o[i * N_READINGS..(i + 1) * N_READINGS].copy_from_slice(&e.obs);
+            (t[i], r[i], d[i]) = (e.t_s, e.reward, e.terminated);
+            each(i, e);
+        });
         Ok((obs, t_s, rewards, terminated))
     }
 }
@@ -390,7 +389,7 @@ impl VecSimulation {
     fn step<'py>(
         &mut self,
         py: Python<'py>,
-        actions: PyReadonlyArrayDyn<'py, f64>,
+        actions: &Bound<'py, PyArrayDyn<f64>>,
         seeds: Option<PyReadonlyArray1<'py, u64>>,
     ) -> PyResult<StepOut<'py>> {
         let n = self.n;
@@ -400,7 +399,9 @@ impl VecSimulation {
                 "actions: expected one valve command per environment (shape ({n}, 1) or ({n},)), got shape {shape:?}"
             )));
         }
-        let a = actions.as_array();
+        // SAFETY: read at once with the GIL held and no Python code running: nothing writes
+        // to the array meanwhile (a view without borrow tracking, which allocates).
+        let a = unsafe { actions.as_array() };
         let mut next = a.iter();
         self.crew.for_each(|_, e| e.action = next.next().copied().unwrap_or(f64::NAN));
         match &seeds {
