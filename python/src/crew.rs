@@ -191,6 +191,11 @@ impl<T: Send + 'static> Crew<T> {
 
 impl<T: Send + 'static> Drop for Crew<T> {
     fn drop(&mut self) {
+        if std::process::id() != self.pid {
+            // A forked child: the workers are its parent's, not to be joined here.
+            std::mem::forget(std::mem::take(&mut self.workers));
+            return;
+        }
         self.shared.stop.store(true, Ordering::Release);
         for (t, h) in self.workers.drain(..) {
             t.unpark();

@@ -3,6 +3,7 @@ against gymnasium.vector.SyncVectorEnv over N exoleg.gym.ExolegEnv: the same arr
 step (observations, rewards, terminations, truncations, infos) with the same seeds and actions,
 through autoresets, failures and partial resets; seeds; wrong action shapes; num_envs."""
 
+import gc
 import os
 
 import numpy as np
@@ -204,16 +205,20 @@ def test_close_and_a_forked_child():
         r, w = os.pipe()
         pid = os.fork()
         if pid == 0:  # pragma: no cover (the child)
+            code = 1
             try:
                 os.write(w, vec.step(a)[0].tobytes())
+                del vec  # dropped in the child: its parent's threads are not joined
+                gc.collect()
+                code = 0
             finally:
-                os._exit(0)
+                os._exit(code)
         os.close(w)
         got = b""
         while chunk := os.read(r, 1 << 16):
             got += chunk
         os.close(r)
-        os.waitpid(pid, 0)
+        assert os.waitpid(pid, 0)[1] == 0
         assert got == vec.step(a)[0].tobytes()
     vec.close()
     with pytest.raises(exoleg.ExoError, match="closed"):

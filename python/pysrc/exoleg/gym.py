@@ -271,6 +271,7 @@ class ExolegVectorEnv(VectorEnv):
         self._native = _Closed()
 
     def __repr__(self) -> str:
+        """``ExolegVectorEnv(num_envs=N)``."""
         return f"ExolegVectorEnv(num_envs={self.num_envs})"
 
 
