@@ -107,8 +107,9 @@ class ExolegVectorEnv(VectorEnv):
     >>> obs, infos = envs.reset(seed=1)              # sub-environment i gets seed 1 + i
     >>> obs, rewards, terminated, truncated, infos = envs.step(envs.action_space.sample())
 
-    - ``step(actions)`` steps every sub-environment in one call, on ``threads`` worker threads
-      (default: one per core, at most one per sub-environment) with the GIL released; each is
+    - ``step(actions)`` steps every sub-environment in one call, on ``threads`` threads, the
+      calling one included (default: one per core; at most one per sub-environment), with the
+      GIL released; each is
       exactly an :class:`ExolegEnv` (the same observation, reward in N^2, ``terminated``, and
       ``info["failure"]`` when its run fails: the others go on).
     - ``actions``: float64 valve commands, shape ``(num_envs, 1)`` (the action space's) or
