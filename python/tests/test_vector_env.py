@@ -223,3 +223,18 @@ def test_close_and_a_forked_child():
     vec.close()
     with pytest.raises(exoleg.ExoError, match="closed"):
         vec.step(a)
+
+
+def test_the_threads_change_nothing():
+    n = 5
+    envs = [exogym.ExolegVectorEnv(TREADMILL, SHORT, n, threads=t) for t in (1, 2, 5)]
+    assert [e.threads for e in envs] == [1, 2, 5]
+    first = [e.reset(seed=21) for e in envs]
+    for got in first[1:]:
+        _same(got, first[0], "reset")
+    rng = np.random.default_rng(5)
+    for k in range(130):
+        a = rng.uniform(-0.05, 0.05, size=(n, 1))
+        got = [e.step(a) for e in envs]
+        for g in got[1:]:
+            _same(g, got[0], f"step {k}")
