@@ -8,8 +8,10 @@
 //! The Python layer (`pysrc/exoleg/__init__.py`) wraps the results.
 
 mod controller;
+mod crew;
 mod obs;
 mod stepwise;
+mod vector;
 
 use exoleg::record::{Layout, RecordSink, Row};
 use exoleg::study::{compare, robustness, shard, sweep};
@@ -435,6 +437,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Plan>()?;
     m.add_class::<obs::Obs>()?;
     m.add_class::<stepwise::Simulation>()?;
+    m.add_class::<vector::VecSimulation>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
