@@ -36,11 +36,17 @@ pub struct IdealParams {
     /// The bound on the device's moment (N m per kg of the subject). Default 1.0 (Bianco et
     /// al. 2022's knee bound). 0..=5 (0: no moment, the baseline of `exoleg run --baseline`).
     pub max_nm_per_kg: f64,
+    /// A step of moment the device adds from `step_at_s` on (N m, extensor positive): the
+    /// wearer's reaction to a push (README, "A wearer as strong and as slow as a person").
+    /// Default 0. -500..=500.
+    pub step_nm: f64,
+    /// When the step starts (s). Default 0. 0..=1e6.
+    pub step_at_s: f64,
 }
 
 impl Default for IdealParams {
     fn default() -> Self {
-        Self { direction: IdealDirection::Both, max_nm_per_kg: 1.0 }
+        Self { direction: IdealDirection::Both, max_nm_per_kg: 1.0, step_nm: 0.0, step_at_s: 0.0 }
     }
 }
 
@@ -60,6 +66,15 @@ impl IdealParams {
             IdealDirection::Both => moment_nm.clamp(-b, b),
         }
     }
+
+    /// The step's moment at `t_s` (N m, extensor positive).
+    pub fn step_at(&self, t_s: f64) -> f64 {
+        if t_s >= self.step_at_s {
+            self.step_nm
+        } else {
+            0.0
+        }
+    }
 }
 
 #[cfg(test)]
@@ -68,7 +83,7 @@ mod tests {
 
     #[test]
     fn one_sign_up_to_the_bound() {
-        let p = |d| IdealParams { direction: d, max_nm_per_kg: 0.5 };
+        let p = |d| IdealParams { direction: d, max_nm_per_kg: 0.5, ..Default::default() };
         assert_eq!(p(IdealDirection::Extension).moment_nm(30.0, 70.0), 30.0);
         assert_eq!(p(IdealDirection::Extension).moment_nm(50.0, 70.0), 35.0);
         assert_eq!(p(IdealDirection::Extension).moment_nm(-20.0, 70.0), 0.0);

@@ -114,6 +114,8 @@ struct Sensed {
     error_rad: [f64; 3],
     error_rate_rad_s: [f64; 3],
     device_torque_nm: f64,
+    /// The muscles' joints (anatomical hip flexion, knee, ankle; rad and rad/s).
+    joints: Joints,
 }
 
 /// One step's inputs: the body now and where it is in the cycle.
@@ -208,6 +210,7 @@ impl MuscleWearer {
             error_rad: [0, 1, 2].map(|j| q[j] - x.body_rad[j]),
             error_rate_rad_s: [0, 1, 2].map(|j| qd[j] - x.body_rate_rad_s[j]),
             device_torque_nm: x.device_torque_nm,
+            joints: x.joints,
         });
         let s = &self.setup;
         let w = x.stance_weight.clamp(0.0, 1.0);
@@ -258,9 +261,14 @@ impl MuscleWearer {
     /// over it (N m, flexion and dorsiflexion positive).
     pub fn step(&mut self, t_s: f64, dt_s: f64, x: &WearerInputs) -> [f64; 3] {
         let asked = self.asked(t_s, x);
-        let demand = Joints { moment_nm: asked, ..x.joints };
-        // The activations that would make the asked moments (static optimisation), kept in
-        // `exc` until the excitations replace them.
+        // The activations that would make the asked moments (static optimisation) at the
+        // joints' state as the nervous system knows it (each a delay late), kept in `exc` until
+        // the excitations replace them.
+        let mut demand = Joints { moment_nm: asked, ..x.joints };
+        for j in 0..3 {
+            let seen = self.seen(t_s, self.setup.delay_s[j]).joints;
+            (demand.q_rad[j], demand.qd_rad_s[j]) = (seen.q_rad[j], seen.qd_rad_s[j]);
+        }
         self.reserve_nm = self.analysis.excitations(&demand, &mut self.exc);
         if !self.started {
             // A person standing in the gait, not a limp leg: activations start where asked.

@@ -649,6 +649,8 @@ fn walking(c: &Check, f: &ScenarioFile) -> Result<()> {
         && f.hip.mode == Some(crate::human::HipMode::Carriage)
         && f.reference.kind == ReferenceKind::Gait;
     c.range("controller.ideal.max_nm_per_kg", f.controller.ideal.max_nm_per_kg, 0.0, 5.0)?;
+    c.range("controller.ideal.step_nm", f.controller.ideal.step_nm, -500.0, 500.0)?;
+    c.range("controller.ideal.step_at_s", f.controller.ideal.step_at_s, 0.0, 1e6)?;
     if f.controller.kind == ControllerKind::IdealMoment && !carriage_gait {
         return Err(c.fail(
             "controller.kind",

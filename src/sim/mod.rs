@@ -677,7 +677,7 @@ impl Simulation {
         let mut f = crate::human::body_forces(&b.hip, &b.wearer, &sample, &state);
         if let Some((ideal, mass_kg)) = &self.sc.ideal {
             // The data's moment is extensor positive, the knee's torque flexion positive.
-            f.device_knee_torque_nm = -ideal.moment_nm(sample.knee_moment_nm, *mass_kg);
+            f.device_knee_torque_nm = -ideal.moment_nm(sample.knee_moment_nm, *mass_kg) - ideal.step_at(t);
         }
         if let (true, crate::human::BodyTargets::Walking(w)) = (self.wearer.is_some(), &b.targets) {
             let tilt = w.pelvic_tilt_at(t);

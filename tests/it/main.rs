@@ -28,6 +28,7 @@ mod leg_passive;
 mod leg_reduced;
 mod leg_statics;
 mod leg_urdf_errors;
+mod muscle_wearer;
 mod muscles;
 mod observer;
 mod output_safety;

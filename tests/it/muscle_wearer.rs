@@ -1,0 +1,205 @@
+//! A wearer as strong and as slow as a person (issue 40, `wearer.model = "muscles"`): it walks
+//! the training set, it answers a push a neural delay late through activation dynamics while
+//! the impedance wearer answers at once, its nervous system alone is delayed and rate-limited,
+//! and its keys refuse what has no meaning.
+
+use crate::common::exe;
+use exoleg::human::{MuscleWearer, WearerInputs};
+use exoleg::study::gait_check::{gait_check, CheckOptions, Outcome};
+use std::path::Path;
+use std::process::Command;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// v3's 21 treadmill trials with the muscle wearer on the reduced engine (the built-in
+/// treadmill_subject with its DT-ZNN device): the issue's >= 19 meet today's targets; measured
+/// 20 (the miss: wbds29, whose stance knee moment's correlation is low), the peak reserves
+/// at most 0.1 % of a joint's moment (limit 0.5 %), the gross metabolic rate 10.5 W/kg on
+/// average (7.5..13.1).
+#[test]
+fn the_muscle_wearer_walks_the_training_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let opts = CheckOptions { sets: vec!["wearer.model=\"muscles\"".into()], ..Default::default() };
+    let r = gait_check(&[root().join("assets/gait/v3")], &dir.path().join("out"), &opts).unwrap();
+    print!("{}", r.table());
+    let meeting = r.trials.iter().filter(|t| t.meets(&r.targets)).count();
+    assert!(meeting >= 19, "{meeting} of 21 meet the targets");
+    let (mut worst_reserve, mut gross) = (0.0f64, Vec::new());
+    for t in &r.trials {
+        let Outcome::Ran(f) = &t.outcome else { panic!("{}: {:?}", t.name, t.outcome) };
+        let m = f.metabolics.as_ref().expect("the muscle wearer's figures");
+        worst_reserve = m.peak_reserve_pct.iter().fold(worst_reserve, |a, b| a.max(*b));
+        gross.push(m.gross_w_per_kg);
+    }
+    assert!(worst_reserve < 0.5, "peak reserve {worst_reserve} %");
+    let mean = gross.iter().sum::<f64>() / gross.len() as f64;
+    assert!((8.0..13.0).contains(&mean), "gross {mean} W/kg");
+}
+
+/// A column of a run in memory.
+fn column(rec: &exoleg::record::MemoryRecord, name: &str) -> Vec<f64> {
+    rec.columns().into_iter().find(|(n, _)| n == name).unwrap_or_else(|| panic!("no column {name}")).1
+}
+
+/// The reduced treadmill (treadmill_subject at 1 ms) with an ideal device that gives nothing
+/// but a step of `step_nm` (extensor +) at `at_s`, in mid-stance.
+fn pushed(muscles: bool, step_nm: f64, at_s: f64) -> exoleg::record::MemoryRecord {
+    let step = format!("controller.ideal.step_nm={step_nm}");
+    let at = format!("controller.ideal.step_at_s={at_s}");
+    let mut sets = vec![
+        "leg.engine=\"reduced\"",
+        "sim.dt_s=0.001",
+        "sim.duration_s=2.6",
+        "controller.kind=\"ideal_moment\"",
+        "controller.ideal.max_nm_per_kg=0",
+        &step,
+        &at,
+    ];
+    if muscles {
+        sets.extend(["wearer.model=\"muscles\"", "output.muscles=true"]);
+    }
+    let sc = exoleg::load(Some(&root().join("assets/scenarios/treadmill_subject.toml")), &sets).unwrap();
+    exoleg::run_in_memory(&sc.model).unwrap().1
+}
+
+/// A 10 N m flexion push in mid-stance (2.392 s, 25 % into the third stride). The impedance
+/// wearer answers in the same millisecond (its knee moment changes by 7 N m in the first 4 ms
+/// of a 20 N m push), the knee hardly moves. The muscle wearer's activations do not change
+/// before the hip's neural delay (5 ms; measured: the hamstrings and gastrocnemius share the
+/// hip's answer to the body's motion from 7 ms), the knee's own vasti not before the knee's
+/// 10 ms (measured 11 ms: the angle moves the millisecond after the push), its moment
+/// changes before then only through the muscles' own force-velocity (measured 0.53 N m, 2 % of
+/// its answer 150 ms on, 23.6 N m; limit 5 %), and the knee sinks (measured 8.6 deg at 150 ms
+/// against the impedance wearer's 1.1 deg for a push twice as large).
+#[test]
+fn a_push_is_answered_a_neural_delay_late() {
+    let (t0, k0) = (2.392, 2392);
+    let (calm, push) = (pushed(true, 0.0, 0.0), pushed(true, -10.0, t0));
+    let diff =
+        |name: &str| -> Vec<f64> { column(&push, name).iter().zip(column(&calm, name)).map(|(a, b)| a - b).collect() };
+    let (dq, dm) = (diff("knee_angle_deg"), diff("wearer_knee_torque_nm"));
+    let acts: Vec<Vec<f64>> = ["vasti", "hamstrings", "bifemsh", "rect_fem", "gastroc"]
+        .iter()
+        .map(|m| diff(&format!("muscle_{m}_activation")))
+        .collect();
+    let first = |a: &[f64]| (k0..k0 + 150).find(|&k| a[k].abs() > 1e-12).map_or(150, |k| k - k0);
+    let firsts: Vec<usize> = acts.iter().map(|a| first(a)).collect();
+    eprintln!("first activation change (ms) vasti, hamstrings, bifemsh, rect_fem, gastroc: {firsts:?}");
+    // The hip's delay is 5 ms: the biarticular muscles may answer the hip's motion then; the
+    // knee's own muscles (vasti, biceps femoris short head) wait for the knee's 10 ms.
+    assert!(firsts.iter().all(|&f| f >= 5), "activations changed before any delay: {firsts:?}");
+    assert!(firsts[0] >= 10 && firsts[2] >= 10, "knee muscles before the knee's delay: {firsts:?}");
+    assert!(firsts[0] <= 12, "no answer at the delay: {firsts:?}");
+    let answer = dm[k0 + 150];
+    assert!(answer < -15.0, "the muscles' answer {answer} N m (extensor -)");
+    let intrinsic = dm[k0..k0 + 10].iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    assert!(intrinsic < 0.05 * answer.abs(), "before the delay {intrinsic} N m of {answer}");
+    assert!(dq[k0 + 150] > 4.0, "the knee sank {} deg", dq[k0 + 150]);
+    // The impedance wearer: the knee stays within 2 deg under a push twice as large, and its
+    // moment has changed by a third of the push within 4 ms.
+    let (icalm, ipush) = (pushed(false, 0.0, 0.0), pushed(false, 20.0, t0));
+    let idq: Vec<f64> =
+        column(&ipush, "knee_angle_deg").iter().zip(column(&icalm, "knee_angle_deg")).map(|(a, b)| a - b).collect();
+    let idm: Vec<f64> = column(&ipush, "wearer_knee_torque_nm")
+        .iter()
+        .zip(column(&icalm, "wearer_knee_torque_nm"))
+        .map(|(a, b)| a - b)
+        .collect();
+    assert!(idq[k0..k0 + 150].iter().all(|d| d.abs() < 2.0), "impedance knee moved");
+    assert!(idm[k0 + 4] > 5.0, "the impedance wearer's answer at 4 ms: {} N m", idm[k0 + 4]);
+}
+
+/// The nervous system alone (the wearer of the reduced treadmill, frozen at 30 % of its cycle
+/// on the gait it learned): a 2 deg knee deviation appears at 0.1 s. Its muscles' knee moment
+/// does not change before the knee's delay (10 ms), then follows the command through De
+/// Groote's activation dynamics: half of its change in 10 ms after the delay (measured; the
+/// limit 20 ms is about twice the 9.6 ms a full excitation step takes to half activation).
+#[test]
+fn the_answer_starts_after_the_delay_and_rises_with_activation() {
+    let sc = exoleg::load(
+        Some(&root().join("assets/scenarios/treadmill_subject.toml")),
+        &["leg.engine=\"reduced\"", "sim.dt_s=0.001", "wearer.model=\"muscles\""],
+    )
+    .unwrap();
+    let setup = sc.model.muscle_wearer.clone().expect("a muscle wearer");
+    let tilt = 7.6f64.to_radians();
+    let [_, q, _] = setup.feedforward.at(30.0);
+    let input = |knee_offset_rad: f64| {
+        let mut body = q;
+        body[1] += knee_offset_rad;
+        WearerInputs {
+            joints: exoleg::muscles::analysis::Joints {
+                q_rad: [q[0] + tilt, q[1], q[2]],
+                qd_rad_s: [0.0; 3],
+                moment_nm: [0.0; 3],
+            },
+            body_rad: body,
+            body_rate_rad_s: [0.0; 3],
+            pct: 30.0,
+            stance_weight: 1.0,
+            device_torque_nm: 0.0,
+        }
+    };
+    let mut w = MuscleWearer::new(setup.clone());
+    let dt = 1e-3;
+    let knee: Vec<f64> = (0..400)
+        .map(|k| {
+            let t = k as f64 * dt;
+            w.step(t, dt, &input(if t >= 0.1 - 1e-9 { 2f64.to_radians() } else { 0.0 }))[1]
+        })
+        .collect();
+    let before = knee[99];
+    assert!(knee[100..110].iter().all(|m| (m - before).abs() < 1e-9), "changed before the delay");
+    let last = knee[399] - before;
+    // The stance knee gain (2 N m/rad/kg) times 2 deg: the command's change, less than the
+    // whole when the deviation is extrapolated along a zero rate.
+    let expected = -setup.stiffness_nm_per_rad[0][1] * 2f64.to_radians();
+    assert!((last - expected).abs() < 0.05 * expected.abs(), "final change {last} N m, command {expected}");
+    let half = (110..400).find(|&k| (knee[k] - before).abs() >= 0.5 * last.abs()).unwrap();
+    assert!(half - 110 <= 20, "half of the answer {} ms after the delay", half - 110);
+}
+
+/// `wearer.model = "muscles"` needs a walking run; its keys mean nothing without it; its
+/// delays and gains have ranges.
+#[test]
+fn muscle_wearer_keys_refuse_what_means_nothing() {
+    let treadmill = root().join("assets/scenarios/gait_treadmill.toml");
+    for (scenario, sets, key) in [
+        (None, vec!["wearer.model=\"muscles\""], "wearer.model"),
+        (Some(&treadmill), vec!["wearer.neural_delay_s=0.02"], "wearer.neural_delay_s"),
+        (Some(&treadmill), vec!["wearer.adapted=false"], "wearer.adapted"),
+        (
+            Some(&treadmill),
+            vec!["wearer.model=\"muscles\"", "wearer.neural_delay_s=[0.01,0.5,0.02]"],
+            "wearer.neural_delay_s (knee)",
+        ),
+        (
+            Some(&treadmill),
+            vec!["wearer.model=\"muscles\"", "wearer.stance_stiffness_nm_per_rad_kg=[1,2,-3]"],
+            "wearer.stance_stiffness_nm_per_rad_kg (ankle)",
+        ),
+        (
+            Some(&treadmill),
+            vec!["wearer.model=\"muscles\"", "wearer.swing_damping_nm_s_per_rad_kg=[1,2,30]"],
+            "wearer.swing_damping_nm_s_per_rad_kg (ankle)",
+        ),
+        (
+            Some(&treadmill),
+            vec!["controller.kind=\"ideal_moment\"", "controller.ideal.step_nm=1e9"],
+            "controller.ideal.step_nm",
+        ),
+    ] {
+        let mut cmd = Command::new(exe());
+        cmd.args(["run", "--quiet", "--out"]).arg(tempfile::tempdir().unwrap().path());
+        cmd.args(sets.iter().flat_map(|s| ["--set", s]));
+        if let Some(s) = scenario {
+            cmd.arg(s);
+        }
+        let o = cmd.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{sets:?}: {err}");
+        assert!(err.contains(key), "{sets:?}: {err}");
+    }
+}
