@@ -9,6 +9,9 @@
 //! folder, `summary.json` and the plots after the loop):
 //! - `treadmill_reduced`: `gait_treadmill.toml` on the reduced engine at 1 ms (dtznn at 1 kHz,
 //!   the device's truth columns; 6.6 s: a stride of run-in and five).
+//! - `treadmill_muscles`: the same with `wearer.model = "muscles"` (issue 40): the nervous
+//!   system, static optimisation over the nine muscles and their activation dynamics each
+//!   millisecond. Its `whole` includes the 3-stride learning run of the impedance wearer.
 //! - `treadmill_rapier`: the shipped `gait_treadmill.toml` (Rapier, 0.25 ms).
 //! - `stand_reduced`: `stand.toml` on the reduced engine at 1 ms with the actuator free, 6 s
 //!   (the passive standing leg, MuJoCo's `stand_*` cases; the controller runs, its command
@@ -29,11 +32,16 @@ struct Case {
     sets: &'static [&'static str],
 }
 
-const CASES: [Case; 3] = [
+const CASES: [Case; 4] = [
     Case {
         name: "treadmill_reduced",
         file: "gait_treadmill.toml",
         sets: &["leg.engine=\"reduced\"", "sim.dt_s=0.001"],
+    },
+    Case {
+        name: "treadmill_muscles",
+        file: "gait_treadmill.toml",
+        sets: &["leg.engine=\"reduced\"", "sim.dt_s=0.001", "wearer.model=\"muscles\""],
     },
     Case { name: "treadmill_rapier", file: "gait_treadmill.toml", sets: &[] },
     Case {

@@ -151,7 +151,10 @@ pub struct MuscleWearer {
     setup: Arc<MuscleWearerSetup>,
     analysis: Analysis,
     act: Vec<f64>,
+    /// Excitations sent over the current step (and the next step's starting guess).
     exc: Vec<f64>,
+    /// The activations static optimisation asks for.
+    target: Vec<f64>,
     line: VecDeque<Sensed>,
     /// The device's moment the adapted wearer expects per bin of the cycle (N m).
     expected_device_nm: Vec<f64>,
@@ -173,6 +176,7 @@ impl MuscleWearer {
             analysis: Analysis::new(setup.muscles.clone()),
             act: vec![curves::MIN_ACTIVATION; n],
             exc: vec![curves::MIN_ACTIVATION; n],
+            target: vec![curves::MIN_ACTIVATION; n],
             line: VecDeque::new(),
             expected_device_nm: vec![0.0; FEEDFORWARD_BINS],
             device: DeviceFelt { bin: None, felt: vec![None; FEEDFORWARD_BINS] },
@@ -269,19 +273,20 @@ impl MuscleWearer {
             let seen = self.seen(t_s, self.setup.delay_s[j]).joints;
             (demand.q_rad[j], demand.qd_rad_s[j]) = (seen.q_rad[j], seen.qd_rad_s[j]);
         }
-        self.reserve_nm = self.analysis.excitations(&demand, &mut self.exc);
+        self.reserve_nm = self.analysis.excitations(&demand, &mut self.target);
         if !self.started {
             // A person standing in the gait, not a limp leg: activations start where asked.
-            self.act.copy_from_slice(&self.exc);
+            self.act.copy_from_slice(&self.target);
+            self.exc.copy_from_slice(&self.target);
             self.started = true;
         }
         self.made_nm = self.analysis.moments(&x.joints, &self.act);
         self.asked_nm = asked;
-        for (a, u) in self.act.iter().zip(self.exc.iter_mut()) {
-            *u = excitation_for(*a, *u, dt_s);
+        for ((a, u), &target) in self.act.iter().zip(self.exc.iter_mut()).zip(&self.target) {
+            *u = excitation_for(*a, target, dt_s, *u);
         }
         let state = Joints { moment_nm: self.made_nm, ..x.joints };
-        let sample = self.analysis.state_sample(&state, &self.act, &self.exc, self.reserve_nm);
+        let sample = self.analysis.sample_after_moments(&state, &self.act, &self.exc, self.reserve_nm);
         self.last = Some((t_s, sample));
         for (a, &u) in self.act.iter_mut().zip(&self.exc) {
             *a = activation_after(*a, u, dt_s);
@@ -322,25 +327,50 @@ pub fn activation_after(a: f64, u: f64, dt_s: f64) -> f64 {
 /// The excitation (0..1) that brings activation `a` to `target` in `dt_s` as fast as the
 /// activation dynamics allow (the inverse of [`activation_after`], computed muscle control's
 /// rule): the target itself when it is reached in the step, else full excitation (rising) or
-/// none (falling), so activations rise and fall at their physiological rates.
-pub fn excitation_for(a: f64, target: f64, dt_s: f64) -> f64 {
-    let up = target >= a;
+/// none (falling), so activations rise and fall at their physiological rates. `guess`: a
+/// starting point (the muscle's excitation a step before: Newton's method from there takes
+/// one or two steps; any value in 0..=1 gives the same answer).
+pub fn excitation_for(a: f64, target: f64, dt_s: f64, guess: f64) -> f64 {
+    if let Some(u) = newton_excitation(a, target, dt_s, guess.clamp(0.0, 1.0), 6) {
+        return u;
+    }
     // The gain of a saturated command in that direction, then the command that reaches the
-    // target with it; a command in the range keeps that gain to within the tanh switch.
-    let g = rate_gain(a, if up { 1.0 } else { 0.0 });
+    // target with it: exact when it saturates (the gain is the saturated one).
+    let g = rate_gain(a, if target >= a { 1.0 } else { 0.0 });
     let e = (-g * dt_s).exp();
     let u = ((target - a * e) / (1.0 - e)).clamp(0.0, 1.0);
-    if (activation_after(a, u, dt_s) - target).abs() < 1e-9 || u == 0.0 || u == 1.0 {
-        u
-    } else {
-        // Within the switch the gain depends on u: a few fixed-point steps.
-        let mut u = u;
-        for _ in 0..8 {
-            let e = (-rate_gain(a, u) * dt_s).exp();
-            u = ((target - a * e) / (1.0 - e)).clamp(0.0, 1.0);
-        }
-        u
+    if u == 0.0 || u == 1.0 {
+        return u;
     }
+    newton_excitation(a, target, dt_s, u, 30).unwrap_or(u)
+}
+
+/// Newton's method on h(u) = u + (a - u) exp(-g(u) dt) - target from `u` within 0..=1, at
+/// most `steps` steps: the excitation once a step moves it less than 1e-13 (a bound when the
+/// target is out of reach in the step), None if it has not settled.
+fn newton_excitation(a: f64, target: f64, dt_s: f64, mut u: f64, steps: usize) -> Option<f64> {
+    let (ta, td, b) =
+        (curves::ACTIVATION_TIME_CONSTANT_S, curves::DEACTIVATION_TIME_CONSTANT_S, curves::ACTIVATION_SMOOTHING);
+    let z = 0.5 + 1.5 * a;
+    let (slope_a, slope_d) = (1.0 / (ta * z), z / td);
+    for _ in 0..steps {
+        let th = (b * (u - a)).tanh();
+        let f = 0.5 * th;
+        let g = (f + 0.5) * slope_a + (0.5 - f) * slope_d;
+        let dg = 0.5 * b * (1.0 - th * th) * (slope_a - slope_d);
+        let e = (-g * dt_s).exp();
+        let h = u + (a - u) * e - target;
+        let dh = 1.0 - e - (a - u) * e * dt_s * dg;
+        if dh <= 0.0 {
+            return None;
+        }
+        let next = (u - h / dh).clamp(0.0, 1.0);
+        if (next - u).abs() <= 1e-13 {
+            return Some(next);
+        }
+        u = next;
+    }
+    None
 }
 
 #[cfg(test)]
@@ -385,11 +415,31 @@ mod tests {
     #[test]
     fn excitation_inverts_the_update() {
         for (a, target) in [(0.2, 0.25), (0.5, 0.495), (0.3, 0.3)] {
-            let u = excitation_for(a, target, 1e-3);
-            assert!((activation_after(a, u, 1e-3) - target).abs() < 1e-6, "{a} -> {target}: u {u}");
+            let u = excitation_for(a, target, 1e-3, 0.5);
+            assert!((activation_after(a, u, 1e-3) - target).abs() < 1e-12, "{a} -> {target}: u {u}");
         }
-        assert_eq!(excitation_for(0.1, 0.9, 1e-3), 1.0);
-        assert_eq!(excitation_for(0.9, 0.1, 1e-3), 0.0);
+        // Every reachable target on a grid, at 1 ms and 0.25 ms: exact to 1e-12.
+        for dt in [1e-3, 2.5e-4] {
+            for i in 0..=50 {
+                let a = 0.01 + 0.98 * i as f64 / 50.0;
+                for k in -20..=20 {
+                    let target = (a + 0.004 * k as f64 * dt / 1e-3).clamp(0.01, 1.0);
+                    let u = excitation_for(a, target, dt, (a + 0.37 * k as f64).rem_euclid(1.0));
+                    let other = excitation_for(a, target, dt, a);
+                    assert!((u - other).abs() < 1e-11, "the guess changed the answer: {u} {other}");
+                    let reached = activation_after(a, u, dt);
+                    let reachable = u > 0.0 && u < 1.0;
+                    if reachable {
+                        assert!((reached - target).abs() < 1e-12, "{a} -> {target} in {dt}: {reached}");
+                    } else {
+                        // Saturated: the target is beyond what a full step reaches.
+                        assert!((target - a).signum() * (target - reached) >= -1e-15, "{a} -> {target}");
+                    }
+                }
+            }
+        }
+        assert_eq!(excitation_for(0.1, 0.9, 1e-3, 0.1), 1.0);
+        assert_eq!(excitation_for(0.9, 0.1, 1e-3, 0.5), 0.0);
     }
 
     /// The learned gait interpolates between bin centres and wraps around the cycle.

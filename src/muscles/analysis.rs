@@ -145,6 +145,8 @@ pub struct Analysis {
     columns: Vec<Column>,
     passive: Vec<f64>,
     fibres: Vec<(curves::Fibre, f64, f64)>,
+    /// How many muscles were outside their tables at the last state evaluated.
+    outside: usize,
     w: Vec<f64>,
     c: Vec<f64>,
 }
@@ -160,6 +162,7 @@ impl Analysis {
             columns: vec![[0.0; 3]; n],
             passive: vec![0.0; n],
             fibres: vec![Default::default(); n],
+            outside: 0,
             w: vec![1.0; n],
             c: Vec::new(),
         }
@@ -194,6 +197,7 @@ impl Analysis {
             }
             self.fibres[i] = (f, fl, k);
         }
+        self.outside = outside;
         (passive_moment, outside)
     }
 
@@ -263,10 +267,10 @@ impl Analysis {
     }
 
     /// The sample of muscles at activations `a` under excitations `u` (a muscle wearer's), at
-    /// the state of `j` (its moments the ones the muscles make), with the reserves `reserve`.
-    pub fn state_sample(&mut self, j: &Joints, a: &[f64], u: &[f64], reserve: [f64; 3]) -> Sample {
-        let (_, outside) = self.muscles_at(j);
-        self.values(j, a, u, reserve, outside)
+    /// the state of the last [`Self::moments`] call, which `j` repeats with the moments the
+    /// muscles make (its angles are read for the record only), with the reserves `reserve`.
+    pub fn sample_after_moments(&self, j: &Joints, a: &[f64], u: &[f64], reserve: [f64; 3]) -> Sample {
+        self.values(j, a, u, reserve, self.outside)
     }
 
     /// The sample's values at the fibres now.

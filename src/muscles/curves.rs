@@ -108,7 +108,8 @@ pub fn fibre_kinematics(l_mt_m: f64, v_mt_m_s: f64, l_slack_m: f64, l_opt_m: f64
 /// [`fibre_kinematics`] with the fibre's height `w_m = l_opt sin(alpha_opt)` (m) known.
 pub fn fibre_with_height(l_mt_m: f64, v_mt_m_s: f64, l_slack_m: f64, l_opt_m: f64, w: f64) -> Fibre {
     let along = (l_mt_m - l_slack_m).max(0.1 * l_opt_m);
-    let l_m = along.hypot(w);
+    // (sqrt, not hypot: lengths of centimetres cannot overflow, and it is the hot path.)
+    let l_m = (along * along + w * w).sqrt();
     let cos = along / l_m;
     Fibre { length_norm: l_m / l_opt_m, velocity_per_s: v_mt_m_s * cos / l_opt_m, cos_pennation: cos }
 }
