@@ -32,34 +32,42 @@ use std::sync::Arc;
 
 /// The gait the wearer learned: its hip, knee and ankle moments (N m, flexion and
 /// dorsiflexion positive) with the angles (rad, the hip the thigh's to the vertical) and rates
-/// (rad/s) they made, per bin of the cycle (bin `i` centred at `(i + 0.5) 100 / n` %),
-/// interpolated periodically.
+/// (rad/s) they made, and the device's knee moment it walked with (N m), per bin of the cycle
+/// (bin `i` centred at `(i + 0.5) 100 / n` %), interpolated periodically.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Feedforward {
     bins: Vec<[[f64; 3]; 3]>,
+    device_nm: Vec<f64>,
 }
 
 /// Bins of a learned gait (1 % of the cycle each).
 pub const FEEDFORWARD_BINS: usize = 100;
 
+/// One sample of a learning run: % of the cycle; moments, angles, rates; the device's knee
+/// moment (N m).
+pub type LearnedSample = (f64, [[f64; 3]; 3], f64);
+
 impl Feedforward {
-    /// The bins' means of `samples` (% of the cycle; moments, angles, rates). None when a bin
-    /// has no sample (a step longer than a bin, or too short a run).
-    pub fn learn(samples: &[(f64, [[f64; 3]; 3])]) -> Option<Self> {
+    /// The bins' means of `samples`. None when a bin has no sample (a step longer than a bin,
+    /// or too short a run).
+    pub fn learn(samples: &[LearnedSample]) -> Option<Self> {
         let n = FEEDFORWARD_BINS;
-        let mut sums = vec![([[0.0; 3]; 3], 0usize); n];
-        for (pct, v) in samples {
-            let (sum, count) = &mut sums[bin_of(n, *pct)];
+        let mut sums = vec![([[0.0; 3]; 3], 0.0, 0usize); n];
+        for (pct, v, device) in samples {
+            let (sum, dev, count) = &mut sums[bin_of(n, *pct)];
             for (s, x) in sum.iter_mut().flatten().zip(v.iter().flatten()) {
                 *s += x;
             }
+            *dev += device;
             *count += 1;
         }
-        let bins = sums
+        let (bins, device_nm) = sums
             .into_iter()
-            .map(|(sum, count)| (count > 0).then(|| sum.map(|r| r.map(|x| x / count as f64))))
-            .collect::<Option<Vec<_>>>()?;
-        Some(Self { bins })
+            .map(|(sum, dev, count)| {
+                (count > 0).then(|| (sum.map(|r| r.map(|x| x / count as f64)), dev / count as f64))
+            })
+            .collect::<Option<(Vec<_>, Vec<_>)>>()?;
+        Some(Self { bins, device_nm })
     }
 
     /// Moments (N m), angles (rad) and rates (rad/s) at `pct` % of the cycle.
@@ -67,6 +75,11 @@ impl Feedforward {
         let (i, k, f) = between_bins(self.bins.len(), pct);
         let (a, b) = (&self.bins[i], &self.bins[k]);
         std::array::from_fn(|r| std::array::from_fn(|j| a[r][j] + f * (b[r][j] - a[r][j])))
+    }
+
+    /// The device's knee moment of the learning run per bin (N m, flexion positive).
+    pub fn device_bins(&self) -> &[f64] {
+        &self.device_nm
     }
 }
 
@@ -77,6 +90,12 @@ fn between_bins(n: usize, pct: f64) -> (usize, usize, f64) {
     let lo = x.floor();
     let i = (lo as isize).rem_euclid(n as isize) as usize;
     (i, (i + 1) % n, x - lo)
+}
+
+/// Bins of the cycle interpolated at `pct` % (periodic).
+fn interpolate_bins(bins: &[f64], pct: f64) -> f64 {
+    let (i, k, f) = between_bins(bins.len(), pct);
+    bins[i] + f * (bins[k] - bins[i])
 }
 
 /// The bin of `pct` % of the cycle among `n`.
@@ -178,7 +197,8 @@ impl MuscleWearer {
             exc: vec![curves::MIN_ACTIVATION; n],
             target: vec![curves::MIN_ACTIVATION; n],
             line: VecDeque::new(),
-            expected_device_nm: vec![0.0; FEEDFORWARD_BINS],
+            // At first it expects the device it learned the gait with.
+            expected_device_nm: setup.feedforward.device_bins().to_vec(),
             device: DeviceFelt { bin: None, felt: vec![None; FEEDFORWARD_BINS] },
             started: false,
             made_nm: [0.0; 3],
@@ -228,7 +248,10 @@ impl MuscleWearer {
         });
         let mut asked = [0, 1, 2].map(|j| ff[j] + fb[j]);
         if s.adapted {
-            asked[1] -= self.expect_device(t_s, x.pct);
+            // The knee moment the gait took, the device's part of it as it was in the
+            // learning run less what the wearer now expects of the device.
+            let learned = interpolate_bins(s.feedforward.device_bins(), x.pct);
+            asked[1] += learned - self.expect_device(t_s, x.pct);
         }
         asked
     }
@@ -256,9 +279,7 @@ impl MuscleWearer {
             *sum += felt.device_torque_nm;
             *count += 1;
         }
-        let (i, k, f) = between_bins(n, pct);
-        let e = &self.expected_device_nm;
-        e[i] + f * (e[k] - e[i])
+        interpolate_bins(&self.expected_device_nm, pct)
     }
 
     /// One step of `dt_s` from `t_s`: returns the muscles' moments about hip, knee and ankle
@@ -448,7 +469,7 @@ mod tests {
         let samples: Vec<_> = (0..1000)
             .map(|i| {
                 let pct = i as f64 / 10.0;
-                (pct, [[pct.to_radians().sin(), 0.0, 0.0], [0.0; 3], [0.0; 3]])
+                (pct, [[pct.to_radians().sin(), 0.0, 0.0], [0.0; 3], [0.0; 3]], pct.to_radians().cos())
             })
             .collect();
         let ff = Feedforward::learn(&samples).unwrap();
@@ -456,6 +477,7 @@ mod tests {
         let at = |p: f64| ff.at(p)[0][0];
         assert!((at(0.5) - 0.45f64.to_radians().sin()).abs() < 1e-3);
         assert!((at(100.0) - 0.5 * (at(99.5) + at(100.5))).abs() < 1e-9);
+        assert!((ff.device_bins()[0] - 0.45f64.to_radians().cos()).abs() < 1e-3);
         assert!(Feedforward::learn(&samples[..500]).is_none());
     }
 }

@@ -574,6 +574,66 @@ pub fn heatmap_png(
     marks: &[Vec<bool>],
     legend: &str,
 ) -> Result<()> {
+    heatmap_png_scaled(path, title, rows, cols, cells, marks, legend, HeatScale::Margin)
+}
+
+/// How a heat map colours its cells.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HeatScale {
+    /// A margin to a limit (%; [`margin_colour`]), the colour bar -100..100 %.
+    Margin,
+    /// A change (%; [`change_colour`]): blue a fall, white none, red a rise, full colour at
+    /// +-`span_pct`; None drawn black ("failed").
+    Change {
+        /// The change of full colour (%).
+        span_pct: f64,
+    },
+}
+
+impl HeatScale {
+    fn colour(self, v: Option<f64>) -> RGBColor {
+        match self {
+            Self::Margin => margin_colour(v),
+            Self::Change { span_pct } => change_colour(v, span_pct),
+        }
+    }
+
+    /// The colour bar's range and its ticks.
+    fn bar(self) -> (f64, f64, Vec<f64>) {
+        match self {
+            Self::Margin => (-100.0, 100.0, vec![-100.0, -50.0, 0.0, 50.0, 100.0]),
+            Self::Change { span_pct: s } => (-s, s, vec![-s, -s / 2.0, 0.0, s / 2.0, s]),
+        }
+    }
+}
+
+/// The colour of a change (%): blue at -`span_pct` and below, white at 0, red at +`span_pct`
+/// and above; None black.
+pub fn change_colour(change_pct: Option<f64>, span_pct: f64) -> RGBColor {
+    let lerp = |a: (u8, u8, u8), b: (u8, u8, u8), f: f64| {
+        let m = |x: u8, y: u8| (x as f64 + (y as f64 - x as f64) * f.clamp(0.0, 1.0)).round() as u8;
+        RGBColor(m(a.0, b.0), m(a.1, b.1), m(a.2, b.2))
+    };
+    let (blue, white, red) = ((40, 90, 200), (255, 255, 255), (200, 40, 40));
+    match change_pct {
+        None => RGBColor(0, 0, 0),
+        Some(c) if c < 0.0 => lerp(white, blue, -c / span_pct.max(1e-9)),
+        Some(c) => lerp(white, red, c / span_pct.max(1e-9)),
+    }
+}
+
+/// [`heatmap_png`] with the cells coloured by `scale`.
+#[allow(clippy::too_many_arguments)] // the heat map's parts, as heatmap_png's
+pub fn heatmap_png_scaled(
+    path: &Path,
+    title: &str,
+    rows: &[String],
+    cols: &[String],
+    cells: &[Vec<Option<f64>>],
+    marks: &[Vec<bool>],
+    legend: &str,
+    scale: HeatScale,
+) -> Result<()> {
     ensure_font();
     let lines: Vec<&str> = title.split("; ").collect();
     let (cell_w, cell_h, left) = (74i32, 22i32, 260i32);
@@ -599,14 +659,19 @@ pub fn heatmap_png(
             root.draw_text(label, &font(13).color(&BLACK), (10, y + 4)).map_err(d)?;
             for c in 0..cols.len() {
                 let (x0, m) = (left + c as i32 * cell_w, cells[r][c]);
-                let fill = margin_colour(m);
+                let fill = scale.colour(m);
                 root.draw(&Rectangle::new([(x0, y), (x0 + cell_w - 2, y + cell_h - 2)], fill.filled())).map_err(d)?;
                 let text = match m {
                     None => "failed".to_string(),
+                    Some(m) if matches!(scale, HeatScale::Change { .. }) => format!("{m:+.1}"),
                     Some(m) if marks[r][c] => format!("! {m:.0}"),
                     Some(m) => format!("{m:.0}"),
                 };
-                let ink = if m.is_none_or(|m| m < -60.0) { WHITE } else { BLACK };
+                let dark = match scale {
+                    HeatScale::Margin => m.is_none_or(|m| m < -60.0),
+                    HeatScale::Change { span_pct } => m.is_none_or(|m| m.abs() > 0.6 * span_pct),
+                };
+                let ink = if dark { WHITE } else { BLACK };
                 root.draw_text(&text, &font(12).color(&ink), (x0 + 8, y + 4)).map_err(d)?;
                 if marks[r][c] {
                     root.draw(&Rectangle::new([(x0, y), (x0 + cell_w - 2, y + cell_h - 2)], BLACK.stroke_width(2)))
@@ -614,16 +679,17 @@ pub fn heatmap_png(
                 }
             }
         }
-        // The colour bar: -100 % .. 100 %.
+        // The colour bar over the scale's range.
         let y = top + cell_h * rows.len() as i32 + 30;
         let bar_w = (w as i32 - left - 60).max(200);
+        let (lo, hi, ticks) = scale.bar();
         for i in 0..bar_w {
-            let m = -100.0 + 200.0 * i as f64 / bar_w as f64;
-            root.draw(&Rectangle::new([(left + i, y), (left + i + 1, y + 14)], margin_colour(Some(m)).filled()))
+            let m = lo + (hi - lo) * i as f64 / bar_w as f64;
+            root.draw(&Rectangle::new([(left + i, y), (left + i + 1, y + 14)], scale.colour(Some(m)).filled()))
                 .map_err(d)?;
         }
-        for m in [-100, -50, 0, 50, 100] {
-            let x = left + ((m + 100) as f64 / 200.0 * bar_w as f64) as i32;
+        for m in ticks {
+            let x = left + ((m - lo) / (hi - lo) * bar_w as f64) as i32;
             root.draw_text(&format!("{m}"), &font(12).color(&BLACK), (x - 8, y + 18)).map_err(d)?;
         }
         root.draw_text(legend, &font(13).color(&BLACK), (10, y + 40)).map_err(d)?;

@@ -876,8 +876,15 @@ impl Scenario {
     fn learning_scenario(&self, stride_s: f64) -> Scenario {
         let mut l = self.clone();
         let f = &mut l.file;
+        // The cylinder free: no command reaches the knee, so the controller is a zero valve
+        // command (open loop), which needs no desired force (`reference.force = "none"`
+        // scenarios learn too).
         f.actuator.mode = crate::hydraulics::ActuatorMode::Free;
-        f.controller = Default::default();
+        f.controller = crate::control::ControllerParams {
+            kind: crate::control::ControllerKind::OpenLoop,
+            open_loop_command: 0.0,
+            ..Default::default()
+        };
         f.faults.clear();
         f.wearer = crate::human::WearerParams {
             knee_stiffness_nm_per_rad: f.wearer.knee_stiffness_nm_per_rad,

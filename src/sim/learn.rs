@@ -10,8 +10,8 @@ use std::sync::Arc;
 pub const LEARNING_STRIDES: usize = 3;
 
 /// Learn the gait of `model` (a walking run on the carriage with the impedance wearer): its
-/// hip, knee and ankle moments and the angles and rates they made, over every stride after the
-/// first. Errors when the model does not walk gait data.
+/// hip, knee and ankle moments, the angles and rates they made and the device's knee moment
+/// it walked with, over every stride after the first. Errors when the model does not walk gait data.
 pub fn learn_gait(model: Arc<Model>) -> Result<Feedforward> {
     let data = match model.leg().and_then(|l| l.body.as_ref()).map(|b| &b.targets) {
         Some(crate::human::BodyTargets::Walking(w)) => w.clone(),
@@ -23,13 +23,17 @@ pub fn learn_gait(model: Arc<Model>) -> Result<Feedforward> {
     while !sim.done() {
         let t = sim.t_s();
         let state = sim.plant.body_state();
+        let cylinder_nm = sim.device_knee_torque_nm(t);
         sim.step(&mut crate::record::NullSink)?;
         if let (Some(s), Some(f)) = (state, sim.held.body) {
             if t >= from_s {
                 let moments = [f.hip_torque_nm, f.knee_torque_nm, f.ankle_torque_nm];
                 let angles = [s.hip.0, s.knee.0, s.ankle.0];
                 let rates = [s.hip.1, s.knee.1, s.ankle.1];
-                samples.push((data.pct_at(t), [moments, angles, rates]));
+                // What the wearer feels of the device, as the run gives it (the free
+                // cylinder's friction and the fluid's damping at the knee).
+                let device = cylinder_nm + f.device_knee_torque_nm;
+                samples.push((data.pct_at(t), [moments, angles, rates], device));
             }
         }
     }

@@ -2,7 +2,10 @@
 //! of its shards): `faults.csv` (one row per run with every safety outcome), `faults.png` (the
 //! heat map: failure mode x onset, coloured by the worst margin to a safety limit over the
 //! severities), `fmea.csv` and `fmea.md` (per failure mode: the worst onset and outcome,
-//! detection, time to the safe state).
+//! detection, time to the safe state). When the runs have the wearer's muscles (`wearer.model
+//! = "muscles"` or `wearer.muscles = true`), `faults.csv`'s `gross_w_per_kg` and
+//! `metabolic_change_pct` (against the baseline) are filled and `faults_metabolic.png` maps
+//! the metabolic change as `faults.png` maps the margins.
 //!
 //! A run's use of a limit: value / limit; for the knee's ranges (the wearer's, the URDF's)
 //! 1 + e / margin, e the knee's excursion beyond the range (deg; negative inside it) and the
@@ -54,6 +57,8 @@ struct Outcome {
     error: Option<String>,
     /// The controller crashed (`error` says how): its figures are the failsafe's.
     crashed: bool,
+    /// The wearer's gross metabolic rate (W/kg), when the run has the wearer's muscles.
+    gross_w_per_kg: Option<f64>,
 }
 
 impl Outcome {
@@ -103,6 +108,13 @@ fn crashed(line: &RunLine, safety: Option<SafetySummary>) -> Option<Outcome> {
 }
 
 fn outcome(line: &RunLine, margin_deg: f64, baseline: Option<&Outcome>) -> Outcome {
+    let gross_w_per_kg =
+        line.summary.as_ref().and_then(|s| s.wearer.as_ref()?.metabolics.as_ref()).map(|m| m.gross_w_per_kg);
+    Outcome { gross_w_per_kg, ..safety_outcome(line, margin_deg, baseline) }
+}
+
+/// [`outcome`]'s safety verdicts.
+fn safety_outcome(line: &RunLine, margin_deg: f64, baseline: Option<&Outcome>) -> Outcome {
     let Some(s) = line.summary.as_ref().and_then(|s| s.safety.clone()) else {
         if let Some(o) = crashed(line, None) {
             return o;
@@ -135,6 +147,16 @@ fn outcome(line: &RunLine, margin_deg: f64, baseline: Option<&Outcome>) -> Outco
         safety: Some(s),
         error: None,
         crashed: false,
+        gross_w_per_kg: None,
+    }
+}
+
+impl Outcome {
+    /// The change of the wearer's gross metabolic rate from `baseline`'s (%; negative a
+    /// saving), when both have it.
+    fn metabolic_change_pct(&self, baseline: Option<&Outcome>) -> Option<f64> {
+        let (g, b) = (self.gross_w_per_kg?, baseline?.gross_w_per_kg?);
+        (b > 0.0).then(|| 100.0 * (g - b) / b)
     }
 }
 
@@ -147,7 +169,13 @@ fn opt(x: Option<f64>) -> String {
 }
 
 /// faults.csv's row of run `i` (`stop`: its controller's stop, if any).
-fn csv_row(layout: &CampaignLayout, i: usize, o: &Outcome, stop: Option<&ControllerStopReport>) -> Vec<String> {
+fn csv_row(
+    layout: &CampaignLayout,
+    i: usize,
+    o: &Outcome,
+    stop: Option<&ControllerStopReport>,
+    baseline: Option<&Outcome>,
+) -> Vec<String> {
     let (mode, sev, onset) = match layout.case(i) {
         Some((m, s, k)) => {
             let l = &layout.modes[m];
@@ -197,10 +225,12 @@ fn csv_row(layout: &CampaignLayout, i: usize, o: &Outcome, stop: Option<&Control
         fo(&|s| s.controller_stop_s),
         stop.map_or(String::new(), |c| format!("{}: {}", c.cause.as_str(), c.message)),
         o.error.clone().unwrap_or_default(),
+        opt(o.gross_w_per_kg),
+        opt(o.metabolic_change_pct(baseline)),
     ]
 }
 
-const CSV_HEADER: [&str; 28] = [
+const CSV_HEADER: [&str; 30] = [
     "index",
     "mode",
     "target",
@@ -229,6 +259,8 @@ const CSV_HEADER: [&str; 28] = [
     "controller_stop_s",
     "controller_stop",
     "error",
+    "gross_w_per_kg",
+    "metabolic_change_pct",
 ];
 
 /// Per failure mode, gathered over its runs.
@@ -243,6 +275,8 @@ struct ModeTally {
     /// Per onset: the worst margin over the severities (None: a failed run) and a
     /// fault-induced hazard.
     cells: Vec<(Option<Option<f64>>, bool)>,
+    /// Per onset: the metabolic change (%) of largest size over the severities.
+    metabolic: Vec<Option<f64>>,
 }
 
 impl ModeTally {
@@ -271,6 +305,12 @@ impl ModeTally {
             (None, b) => b,
         });
         cell.1 |= induced;
+        if let Some(c) = o.metabolic_change_pct(baseline) {
+            let m = &mut self.metabolic[onset];
+            if m.is_none_or(|m| c.abs() > m.abs()) {
+                *m = Some(c);
+            }
+        }
     }
 }
 
@@ -352,8 +392,12 @@ pub fn write_outputs(
     let path = dir.join("runs.jsonl");
     let file = std::fs::File::open(&path).map_err(|e| werr(&path)(e.to_string()))?;
     let margin_deg = base.safety.knee_margin_deg;
-    let mut tallies =
-        vec![ModeTally { cells: vec![(None, false); layout.onsets.len()], ..Default::default() }; layout.modes.len()];
+    let tally = ModeTally {
+        cells: vec![(None, false); layout.onsets.len()],
+        metabolic: vec![None; layout.onsets.len()],
+        ..Default::default()
+    };
+    let mut tallies = vec![tally; layout.modes.len()];
     let mut baseline: Option<Outcome> = None;
     let mut rep = CampaignReport::default();
     let mut rows = vec![CSV_HEADER.iter().map(|h| h.to_string()).collect::<Vec<_>>()];
@@ -368,7 +412,8 @@ pub fn write_outputs(
         let o = outcome(&line, margin_deg, baseline.as_ref());
         rep.runs += 1;
         rep.hazard_runs += usize::from(o.error.is_some() || !o.broken.is_empty());
-        rows.push(csv_row(layout, line.index, &o, line.summary.as_ref().and_then(|s| s.controller_stop.as_ref())));
+        let stop = line.summary.as_ref().and_then(|s| s.controller_stop.as_ref());
+        rows.push(csv_row(layout, line.index, &o, stop, baseline.as_ref()));
         match layout.case(line.index) {
             None => {
                 rep.baseline_broken = match (&o.error, o.crashed) {
@@ -415,6 +460,13 @@ pub fn write_outputs(
     let onset_what = if layout.by_phase { "onset: % of the stride after a heel strike" } else { "onset (s)" };
     let legend = format!("worst margin to a safety limit over the severities (% of the limit left; < 0 broken); ! a fault-induced hazard; {onset_what}");
     crate::output::heatmap_png(&dir.join("faults.png"), &rep.title, &names, &cols, &cells, &marks, &legend)?;
+    if baseline.as_ref().is_some_and(|b| b.gross_w_per_kg.is_some()) {
+        let cells: Vec<Vec<Option<f64>>> = tallies.iter().map(|t| t.metabolic.clone()).collect();
+        let legend = format!("the wearer's gross metabolic rate against the baseline's (%; the change of largest size over the severities; blue a saving, red a cost); ! a fault-induced hazard; {onset_what}");
+        let scale = crate::output::HeatScale::Change { span_pct: 20.0 };
+        let path = dir.join("faults_metabolic.png");
+        crate::output::heatmap_png_scaled(&path, &rep.title, &names, &cols, &cells, &marks, &legend, scale)?;
+    }
     Ok(rep)
 }
 
