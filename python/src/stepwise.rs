@@ -136,6 +136,7 @@ pub fn info_json(m: &Model) -> serde_json::Value {
         "steps": m.steps,
         "dt_s": m.dt_s,
         "duration_s": m.steps as f64 * m.dt_s,
+        "wearer_muscles": m.muscles.is_some(),
     })
 }
 
@@ -279,6 +280,13 @@ impl Simulation {
     #[getter]
     fn force_error_n(&self) -> f64 {
         self.run.as_ref().map_or(f64::NAN, |r| r.session.sim().force_error_n())
+    }
+
+    /// The wearer's gross metabolic rate over the last step (W/kg; NaN without the wearer's
+    /// muscles or before the first step).
+    #[getter]
+    fn gross_metabolic_w_per_kg(&self) -> f64 {
+        self.run.as_ref().and_then(|r| r.session.sim().gross_metabolic_w_per_kg()).unwrap_or(f64::NAN)
     }
 
     /// What the controller is told (sample period, valve limit, nominal model), as JSON.

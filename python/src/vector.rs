@@ -24,8 +24,46 @@ pub const MAX_ENVS: usize = 1024;
 /// The reward of a step whose force error is not finite (a failed run): `ExolegEnv`'s.
 const FAILED_REWARD: f64 = -1e12;
 
+/// What a step's reward is (`ExolegEnv`'s `reward`).
+#[derive(Clone, Copy, PartialEq)]
+pub enum Reward {
+    /// Minus the squared true force error (N^2).
+    ForceError,
+    /// Minus the wearer's gross metabolic rate over the last step (W/kg).
+    MetabolicRate,
+}
+
+impl Reward {
+    /// The reward named `name` (`"force_error"` or `"metabolic_rate"`).
+    pub fn parse(name: &str) -> Option<Self> {
+        match name {
+            "force_error" => Some(Self::ForceError),
+            "metabolic_rate" => Some(Self::MetabolicRate),
+            _ => None,
+        }
+    }
+
+    /// The reward of `sim` now (`FAILED_REWARD` when it is not finite or the run failed).
+    fn of(self, sim: Option<&CoreSimulation>) -> f64 {
+        let r = match self {
+            Self::ForceError => {
+                let e = sim.map_or(f64::NAN, |s| s.force_error_n());
+                -(e * e)
+            }
+            Self::MetabolicRate => -sim.and_then(|s| s.gross_metabolic_w_per_kg()).unwrap_or(f64::NAN),
+        };
+        if r.is_finite() {
+            r
+        } else {
+            FAILED_REWARD
+        }
+    }
+}
+
 /// One run of a [`VecSimulation`] with its episode's state, this call's input and its results.
 struct Env {
+    /// What its reward is.
+    reward_kind: Reward,
     /// The scenario's model (its own seed), shared by every run.
     base: Arc<Model>,
     /// This episode's model (`base`, or a copy with the episode's seed).
@@ -82,8 +120,9 @@ fn is_failure(e: &Error) -> bool {
 }
 
 impl Env {
-    fn new(base: Arc<Model>) -> Self {
+    fn new(base: Arc<Model>, reward_kind: Reward) -> Self {
         Self {
+            reward_kind,
             model: base.clone(),
             base,
             sim: None,
@@ -172,8 +211,7 @@ impl Env {
                 }
             }
         }
-        let err = self.sim.as_ref().map_or(f64::NAN, |s| s.force_error_n());
-        self.reward = if err.is_finite() { -(err * err) } else { FAILED_REWARD };
+        self.reward = self.reward_kind.of(self.sim.as_ref());
         self.t_s = self.sim.as_ref().map_or(self.failed_t_s, |s| s.t_s());
         self.terminated = self.sim.as_ref().is_none_or(|s| s.done());
         self.ended = self.terminated;
@@ -298,7 +336,8 @@ impl VecSimulation {
     /// included (0: one per core; at most one per run). Every run starts an episode with the
     /// scenario's own seed (as `exoleg.Simulation` does).
     #[new]
-    #[pyo3(signature = (num_envs, threads=0, path=None, toml_text=None, scenario_json=None, overrides_json=None))]
+    #[allow(clippy::too_many_arguments)] // Python keywords
+    #[pyo3(signature = (num_envs, threads=0, path=None, toml_text=None, scenario_json=None, overrides_json=None, reward="force_error"))]
     fn new(
         py: Python<'_>,
         num_envs: usize,
@@ -307,10 +346,16 @@ impl VecSimulation {
         toml_text: Option<String>,
         scenario_json: Option<String>,
         overrides_json: Option<String>,
+        reward: &str,
     ) -> PyResult<Self> {
         if !(1..=MAX_ENVS).contains(&num_envs) {
             return Err(ScenarioError::new_err(format!("num_envs: {num_envs} is out of range (1..={MAX_ENVS})")));
         }
+        let reward_kind = Reward::parse(reward).ok_or_else(|| {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "reward: {reward:?} is not a reward: \"force_error\" or \"metabolic_rate\""
+            ))
+        })?;
         let sc = py
             .allow_threads(|| load(path, toml_text, scenario_json, overrides_json)?.resolve(&Resources::new()))
             .map_err(py_err)?;
@@ -322,8 +367,16 @@ impl VecSimulation {
         }
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let threads = if threads == 0 { cores } else { threads };
+        if reward_kind == Reward::MetabolicRate && sc.model.muscles.is_none() {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "reward: \"metabolic_rate\" needs the wearer's muscles: {} has none (set wearer.model = \"muscles\" or wearer.muscles = true)",
+                sc.source_name
+            )));
+        }
         let base = sc.model.clone();
-        let envs = (0..num_envs).map(|_| Env { work: Work::Reset(base.seed), ..Env::new(base.clone()) }).collect();
+        let envs = (0..num_envs)
+            .map(|_| Env { work: Work::Reset(base.seed), ..Env::new(base.clone(), reward_kind) })
+            .collect();
         let crew =
             Crew::new(envs, threads, Env::run).map_err(|e| ExoError::new_err(format!("the worker threads: {e}")))?;
         let mut v = Self { crew, n: num_envs, base };

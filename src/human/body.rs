@@ -194,7 +194,7 @@ pub struct WearerParams {
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub muscles: bool,
     /// A muscle table made by `scripts/opensim-muscles` from an OpenSim model (a path,
-    /// relative to the scenario's folder). Default: the embedded gait10dof18musc.
+    /// relative to the scenario's folder). Default: the embedded 2D_gait (`assets/muscles/2d_gait.toml`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub muscles_file: Option<String>,
     /// What static optimisation minimises: `"activation_squared"` (default) or `"metabolic"`

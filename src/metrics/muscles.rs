@@ -185,7 +185,7 @@ impl MuscleMetrics {
         let k = 1.0 / self.samples as f64;
         let mass = self.setup.body_mass_kg;
         let basal = crate::muscles::metabolics::BASAL_W_PER_KG;
-        let net = 2.0 * self.total_w * k / mass;
+        let net = crate::muscles::metabolics::net_w_per_kg(self.total_w * k, mass);
         let names: Vec<String> = self.setup.names().map(str::to_string).collect();
         let cycle = self.cycle(&names);
         Some(MetabolicsSummary {

@@ -136,6 +136,14 @@ pub struct Sample {
     pub values: Vec<f64>,
 }
 
+impl Sample {
+    /// The leg's muscles' metabolic rate over the sample (W; `muscles_metabolic_w`, this leg
+    /// alone, no basal rate).
+    pub fn metabolic_w(&self) -> f64 {
+        self.values[self.values.len() - TOTALS.len()]
+    }
+}
+
 /// The analysis as it runs: the solver's warm start and the last activations.
 #[derive(Debug, Clone)]
 pub struct Analysis {

@@ -52,6 +52,17 @@ impl MetabolicModel {
 
 /// The basal rate (W per kg of body mass).
 pub const BASAL_W_PER_KG: f64 = 1.2;
+
+/// A person's net metabolic rate (W/kg) from one leg's muscles' rate `leg_w` (W): both legs
+/// alike, over the body mass `mass_kg`.
+pub fn net_w_per_kg(leg_w: f64, mass_kg: f64) -> f64 {
+    2.0 * leg_w / mass_kg
+}
+
+/// The gross rate (W/kg): [`net_w_per_kg`] plus [`BASAL_W_PER_KG`].
+pub fn gross_w_per_kg(leg_w: f64, mass_kg: f64) -> f64 {
+    net_w_per_kg(leg_w, mass_kg) + BASAL_W_PER_KG
+}
 /// Umberger's aerobic factor.
 const AEROBIC: f64 = 1.5;
 /// The heat floor (W per kg of muscle).

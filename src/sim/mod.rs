@@ -162,6 +162,8 @@ pub struct Simulation {
     compute: compute::ComputeRun,
     /// The wearer's muscle analysis (`wearer.muscles`).
     muscles: Option<crate::muscles::analysis::Analysis>,
+    /// The leg's muscles' metabolic rate over the last step recorded (W), with muscles.
+    muscles_metabolic_w: Option<f64>,
     /// The muscle wearer (`wearer.model = "muscles"`).
     wearer: Option<crate::human::MuscleWearer>,
 }
@@ -269,6 +271,7 @@ impl Simulation {
             max_substeps: 1,
             substepped_steps: 0,
             muscles,
+            muscles_metabolic_w: None,
             wearer,
         })
     }
@@ -360,6 +363,16 @@ impl Simulation {
     /// The true force error F_L - F_d (N) now (the state, not a reading).
     pub fn force_error_n(&self) -> f64 {
         self.state.hyd.force_n - self.dynamics().reference_at(self.t_s(), &self.held).value
+    }
+
+    /// The wearer's gross metabolic rate over the last step (W/kg of the subject): this leg's
+    /// muscles' rate for both legs plus the basal 1.2 W/kg, as `summary.json`'s
+    /// `gross_w_per_kg` averages it; None without the wearer's muscles (`wearer.model =
+    /// "muscles"` or `wearer.muscles = true`) or before the first step.
+    pub fn gross_metabolic_w_per_kg(&self) -> Option<f64> {
+        let w = self.muscles_metabolic_w?;
+        let mass_kg = self.sc.muscles.as_ref().map(|m| m.body_mass_kg)?;
+        Some(crate::muscles::metabolics::gross_w_per_kg(w, mass_kg))
     }
 
     /// True when the next step starts at a sample instant of a sampled controller.
@@ -786,6 +799,7 @@ impl Simulation {
         }
         row.fault_active = self.any_fault_active(t);
         row.muscles = self.muscle_sample(t);
+        self.muscles_metabolic_w = row.muscles.as_ref().map(|v| v[v.len() - crate::muscles::analysis::TOTALS.len()]);
         sink.row(&row)?;
         let cuff_force_n = if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 };
         // The integrator's first stage is s0 unless coupled mechanics now see another cuff force.

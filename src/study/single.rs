@@ -190,16 +190,18 @@ pub fn baseline_scenario(sc: &crate::scenario::Scenario) -> crate::scenario::Sce
 }
 
 /// What the wearer's muscles cost in `sc`'s baseline ([`baseline_scenario`]), run in memory.
-/// Errors when the scenario has no muscle analysis (`wearer.muscles = true` is needed).
+/// Errors when the scenario has no muscles (`wearer.muscles = true` or `wearer.model =
+/// "muscles"` is needed).
 pub fn baseline_metabolics(
     sc: &crate::scenario::Scenario,
     res: &crate::scenario::Resources,
 ) -> Result<crate::metrics::muscles::MetabolicsSummary> {
-    if !sc.file.wearer.muscles {
+    let w = &sc.file.wearer;
+    if !w.muscles && w.model != crate::human::WearerModel::Muscles {
         return Err(Error::input(
             &sc.source_name,
             "--baseline",
-            "compares what the muscles cost: set wearer.muscles = true",
+            "compares what the muscles cost: set wearer.muscles = true (or wearer.model = \"muscles\")",
         ));
     }
     let b = baseline_scenario(sc).resolve(res)?;

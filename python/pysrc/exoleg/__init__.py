@@ -265,6 +265,13 @@ class Simulation:
         """The true force error F_L - F_d (N) now."""
         return self._sim.force_error_n
 
+    @property
+    def gross_metabolic_w_per_kg(self) -> float:
+        """The wearer's gross metabolic rate over the last step (W/kg: both legs' muscles over
+        the body mass, plus 1.2 W/kg basal); NaN without the wearer's muscles
+        (``wearer.model = "muscles"`` or ``wearer.muscles = true``) or before the first step."""
+        return self._sim.gross_metabolic_w_per_kg
+
     def finish(self) -> Run:
         """Record the end (or now, if you stop early) and return the run, as :func:`run` does;
         the files are written if the simulation was given ``out``."""

@@ -9,7 +9,11 @@
   ``controller.sample_period_s``.
 - The observation is the readings of the sample (:attr:`exoleg.Obs.fields`, float64, SI).
 - The reward is minus the squared true force error, ``-(F_L - F_d)^2`` in N^2, at the new
-  sample instant (the simulator's truth, not the noisy reading).
+  sample instant (the simulator's truth, not the noisy reading). With
+  ``reward="metabolic_rate"`` it is minus the wearer's gross metabolic rate (W/kg) over the
+  last simulation step before the new sample instant: the cost a controller saves or adds the
+  wearer (needs the wearer's muscles: ``wearer.model = "muscles"``, or ``wearer.muscles =
+  true`` for the analysis of the impedance wearer; otherwise ``ValueError``).
 - ``terminated`` when the run reaches ``sim.duration_s``, or when the simulation fails
   (diverges, or the command is not finite): then ``info["failure"]`` holds the message and the
   reward is that of the last state. ``truncated`` is never set (add a TimeLimit wrapper).
@@ -51,7 +55,11 @@ except ImportError as e:  # pragma: no cover
 import exoleg
 from exoleg import _native
 
-__all__ = ["ExolegEnv", "ExolegVectorEnv"]
+__all__ = ["ExolegEnv", "ExolegVectorEnv", "REWARDS"]
+
+#: The rewards an environment can give: minus the squared force error (N^2, the default) or
+#: minus the wearer's gross metabolic rate (W/kg).
+REWARDS = ("force_error", "metabolic_rate")
 
 
 class ExolegEnv(gymnasium.Env):
@@ -59,9 +67,23 @@ class ExolegEnv(gymnasium.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, scenario: exoleg.ScenarioLike = None, overrides: Optional[Mapping[str, Any]] = None) -> None:
+    def __init__(
+        self,
+        scenario: exoleg.ScenarioLike = None,
+        overrides: Optional[Mapping[str, Any]] = None,
+        *,
+        reward: str = "force_error",
+    ) -> None:
         super().__init__()
+        if reward not in REWARDS:
+            raise ValueError(f"reward: {reward!r} is not a reward: one of {REWARDS}")
         self._sim = exoleg.Simulation(scenario, overrides)
+        if reward == "metabolic_rate" and not self._sim.info.get("wearer_muscles"):
+            raise ValueError(
+                'reward: "metabolic_rate" needs the wearer\'s muscles: the scenario has none '
+                '(set wearer.model = "muscles" or wearer.muscles = true)'
+            )
+        self._reward = reward
         limit = float(self._sim.info["valve_command_limit"]) or 1.0
         n = len(exoleg.Obs.fields)
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float64)
@@ -93,8 +115,13 @@ class ExolegEnv(gymnasium.Env):
             self._failed = True
             obs = self._sim.obs
             info["failure"] = str(e)
-        err = self._sim.force_error_n
-        reward = -(err * err) if np.isfinite(err) else -1e12
+        if self._reward == "metabolic_rate":
+            reward = -self._sim.gross_metabolic_w_per_kg
+        else:
+            err = self._sim.force_error_n
+            reward = -(err * err)
+        if not np.isfinite(reward):
+            reward = -1e12
         info["t_s"] = self._sim.t_s
         terminated = self._failed or self._sim.done
         return self._obs(obs), float(reward), bool(terminated), False, info
@@ -140,11 +167,14 @@ class ExolegVectorEnv(VectorEnv):
         num_envs: int = 1,
         *,
         threads: Optional[int] = None,
+        reward: str = "force_error",
     ) -> None:
         super().__init__()
         n = exoleg._count("num_envs", num_envs, 1, 1024)
         t = 0 if threads is None else exoleg._count("threads", threads, 1, 1024)
-        self._native = _native.VecSimulation(n, t, **exoleg._args(scenario, overrides))
+        if reward not in REWARDS:
+            raise ValueError(f"reward: {reward!r} is not a reward: one of {REWARDS}")
+        self._native = _native.VecSimulation(n, t, reward=reward, **exoleg._args(scenario, overrides))
         self.info: Dict[str, Any] = json.loads(self._native.info_json)
         limit = float(self.info["valve_command_limit"]) or 1.0
         self.num_envs = n

@@ -1,4 +1,4 @@
-"""Type stubs of exoleg.gym (units: SI; rewards in N^2)."""
+"""Type stubs of exoleg.gym (units: SI; rewards in N^2, or W/kg with reward="metabolic_rate")."""
 
 from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
 
@@ -8,12 +8,19 @@ from gymnasium.vector import VectorEnv
 
 from . import ScenarioLike
 
+REWARDS: Tuple[str, ...]
+"""The rewards: "force_error" (-(F_L - F_d)^2, N^2; the default), "metabolic_rate" (minus the
+wearer's gross metabolic rate over the last step, W/kg; needs the wearer's muscles)."""
+
 class ExolegEnv(gymnasium.Env):
     """One sample period a step: action (1,) valve command, observation the readings
     (exoleg.Obs.fields, NaN -> 0), reward -(F_L - F_d)^2 in N^2, info["t_s"] (s) and
-    info["failure"] when the run fails."""
+    info["failure"] when the run fails; reward="metabolic_rate": minus the wearer's gross
+    metabolic rate (W/kg)."""
 
-    def __init__(self, scenario: ScenarioLike = ..., overrides: Optional[Mapping[str, Any]] = ...) -> None: ...
+    def __init__(
+        self, scenario: ScenarioLike = ..., overrides: Optional[Mapping[str, Any]] = ..., *, reward: str = ...
+    ) -> None: ...
     def reset(
         self, *, seed: Optional[int] = ..., options: Optional[Dict[str, Any]] = ...
     ) -> Tuple[np.ndarray, Dict[str, Any]]: ...
@@ -33,6 +40,7 @@ class ExolegVectorEnv(VectorEnv):
         num_envs: int = ...,
         *,
         threads: Optional[int] = ...,
+        reward: str = ...,
     ) -> None: ...
     @property
     def threads(self) -> int: ...
