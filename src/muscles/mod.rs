@@ -5,11 +5,13 @@
 //! metabolic probes ([`metabolics`]) that read a muscle's state; [`optimize`] shares a sample's
 //! moments; [`analysis`] runs all of it on a run's samples.
 //!
-//! The default model is OpenSim's `gait10dof18musc` (the nine muscles of the standard 2D gait
-//! models; Delp et al. 1990's geometry as planarised by A. Seth; CC BY 3.0), embedded from
-//! `assets/muscles/gait10dof18musc.toml`, which `scripts/opensim-muscles` made from the model
-//! with OpenSim 4.6 (`assets/muscles/README.md`). `wearer.muscles_file` takes a table the same
-//! script makes from any OpenSim model.
+//! The default model is OpenSim Moco's `2D_gait` (Falisse et al. 2019: the nine muscles of the
+//! standard 2D gait models, gait10dof18musc's geometry (Delp et al. 1990, planarised by A.
+//! Seth) with a fixed knee axis and De Groote's muscles; opensim-core, Apache 2.0), embedded
+//! from `assets/muscles/2d_gait.toml`, which `scripts/opensim-muscles` made from the model with
+//! OpenSim 4.6 (`assets/muscles/README.md`; `gait10dof18musc.toml` and `rajagopal2016.toml`
+//! beside it). `wearer.muscles_file` takes a table the same script makes from any OpenSim
+//! model.
 //!
 //! Scaling to the subject follows OpenSim's scale tool with one factor for every segment,
 //! `s = (thigh + shank of the leg) / (thigh + shank of the model)` (exoleg's built-in legs
