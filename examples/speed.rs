@@ -9,6 +9,9 @@
 //! folder, `summary.json` and the plots after the loop):
 //! - `treadmill_reduced`: `gait_treadmill.toml` on the reduced engine at 1 ms (dtznn at 1 kHz,
 //!   the device's truth columns; 6.6 s: a stride of run-in and five).
+//! - `treadmill_analysis`: the same with `wearer.muscles = true` (issue 39: static
+//!   optimisation and the metabolic rate of the impedance wearer's moments each step; the
+//!   issue's budget: at most 50 % more wall time than `treadmill_reduced`).
 //! - `treadmill_muscles`: the same with `wearer.model = "muscles"` (issue 40): the nervous
 //!   system, static optimisation over the nine muscles and their activation dynamics each
 //!   millisecond. Its `whole` includes the 3-stride learning run of the impedance wearer.
@@ -32,11 +35,16 @@ struct Case {
     sets: &'static [&'static str],
 }
 
-const CASES: [Case; 4] = [
+const CASES: [Case; 5] = [
     Case {
         name: "treadmill_reduced",
         file: "gait_treadmill.toml",
         sets: &["leg.engine=\"reduced\"", "sim.dt_s=0.001"],
+    },
+    Case {
+        name: "treadmill_analysis",
+        file: "gait_treadmill.toml",
+        sets: &["leg.engine=\"reduced\"", "sim.dt_s=0.001", "wearer.muscles=true"],
     },
     Case {
         name: "treadmill_muscles",
