@@ -8,6 +8,7 @@ mod bench_motion;
 mod cli;
 mod compute_model;
 mod device_sensors;
+mod docs;
 mod end_stops;
 mod faults;
 mod firmware;
