@@ -35,8 +35,8 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 
-mod setup;
 mod chain;
+mod setup;
 pub use setup::*;
 
 /// Standard gravity (m/s^2), as the leg models use it.
@@ -559,7 +559,6 @@ pub struct DeviceSensors {
     line: VecDeque<([f64; 21], DeviceCounts)>,
     d_hip: Differentiator,
 }
-
 
 #[cfg(test)]
 mod tests;

@@ -41,14 +41,14 @@
 //! controller state's derivative; the cylinder's derivatives with its hard stops.
 //! After the last step the final state is recorded, so a run has `steps + 1` rows.
 
+mod advance;
 mod compute;
+mod control;
 mod faults;
 pub mod learn;
 mod model;
 mod stage;
 mod state;
-mod advance;
-mod control;
 
 pub use crate::integrator::Integrator;
 pub use compute::{ComputeModel, ComputeSummary};
@@ -453,7 +453,6 @@ impl Simulation {
             self.sc.cylinder.start_on_trajectory(&mut self.state.hyd, r.value, r.rate, v);
         }
     }
-
 }
 
 impl SampledLoop {

@@ -16,12 +16,8 @@ fn foot_load_splits_by_the_centre_of_pressure() {
 #[test]
 fn segment_points_and_frames() {
     let a: f64 = -0.4;
-    let s = SegmentState {
-        origin_m: [0.1, 0.9],
-        cos_sin: (a.cos(), a.sin()),
-        velocity_m_s: [1.0, -0.2],
-        omega_rad_s: 2.0,
-    };
+    let s =
+        SegmentState { origin_m: [0.1, 0.9], cos_sin: (a.cos(), a.sin()), velocity_m_s: [1.0, -0.2], omega_rad_s: 2.0 };
     assert!((s.angle_rad() - 0.4).abs() < 1e-15);
     let u = [0.06, -0.2];
     let (p, v) = s.point(u);
