@@ -31,6 +31,8 @@
 //! cli
 //! ```
 
+#![deny(missing_docs)]
+
 pub mod cli;
 pub mod control;
 pub mod disturbance;

@@ -192,7 +192,7 @@ pub enum Command {
     /// (the heat map), fmea.csv and fmea.md; prints the FMEA table. Exit code 4 if any run
     /// breaks a safety criterion.
     Faults {
-        /// Base scenario (TOML): a leg run, without [[faults]].
+        /// Base scenario (TOML): a leg run, without `[[faults]]`.
         scenario: PathBuf,
         /// The campaign's failure modes, severities and onsets (TOML; see --print-matrix).
         #[arg(long, value_name = "FILE")]

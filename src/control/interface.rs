@@ -284,7 +284,7 @@ pub use crate::faults::StopCause;
 /// A controller that runs once per sample period on the readings and holds its output
 /// (zero-order hold): the built-in firmware controllers, and every controller from outside the
 /// crate (put one in a run with [`crate::sim::Simulation::with_controller`] or
-/// [`crate::study::run_with_controller`]).
+/// [`crate::study::RunBuilder`]).
 pub trait DiscreteController: Send {
     /// Short name for reports (the built-in ones use their `controller.kind`).
     fn kind(&self) -> &str;

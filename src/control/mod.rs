@@ -4,7 +4,7 @@
 //! nominal model of the hydraulics ([`crate::hydraulics::Coefficients`] computed from the
 //! parameters it *assumes*, which may differ from the plant's). It never reads plant internals.
 //!
-//! Two contracts ([`interface`]): a continuous-time block [`Controller`] in the style of
+//! Two contracts (`interface`): a continuous-time block [`Controller`] in the style of
 //! Drake (`u = h(t, r, y, s)` and `ds/dt = f(t, r, y, s, u)`, integrated with the plant at
 //! every solver stage, as the paper's Simulink model did, or advanced once per sample and
 //! held by [`Sampled`]), and the sampled [`DiscreteController`] every firmware-style

@@ -92,9 +92,17 @@ pub const DEFAULT_PELVIC_TILT_DEG: f64 = 10.0;
 pub enum PelvicTilt {
     /// A constant (rad): `hip.pelvic_tilt_deg`, or [`DEFAULT_PELVIC_TILT_DEG`] when the data
     /// have no tilt column (`from_scenario` false).
-    Constant { rad: f64, from_scenario: bool },
+    Constant {
+        /// The tilt (rad).
+        rad: f64,
+        /// Set by `hip.pelvic_tilt_deg` (else the default).
+        from_scenario: bool,
+    },
     /// The data's `pelvis_tilt_deg` column over the cycle (its mean in rad, for reports).
-    Data { mean_rad: f64 },
+    Data {
+        /// The column's mean over the cycle (rad).
+        mean_rad: f64,
+    },
 }
 
 impl PelvicTilt {
@@ -425,7 +433,7 @@ impl WalkingData {
     /// The pelvis's fore-aft target (m, +x forward, zero mean over the cycle) and its rate
     /// (m/s) at `t_s` for a belt that runs `drift_m_s` faster than the leg's stance sweep
     /// ([`Self::belt_speed_m_s`]): over the supporting foot as the data's angles move it
-    /// ([`Self::sway_profile`]), and back at `drift_m_s` over the data's stance and forward
+    /// (its sway profile), and back at `drift_m_s` over the data's stance and forward
     /// again over the swing (see `human::body`), smoothed by [`PELVIS_HARMONICS`].
     pub fn pelvis_x_at(&self, t_s: f64, drift_m_s: f64) -> (f64, f64) {
         let ((x, rate_per_pct, _), (y, sway_per_pct, _)) = self.drift.eval_pair(&self.sway, self.pct_at(t_s));
