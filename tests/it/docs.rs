@@ -90,6 +90,9 @@ fn check_scenario(ws: &Path, text: &str) -> Result<(), String> {
 /// Run every marked block of `md` in one workspace; the failures as "page:line: output", and
 /// how many blocks ran.
 fn check_page(name: &str, md: &str) -> (Vec<String>, usize) {
+    // One page at a time: pages build the same plugin into target/ and load it.
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let ws = workspace();
     let mut failures = Vec::new();
     let found = blocks(md);
@@ -154,4 +157,135 @@ fn a_broken_example_fails() {
     let (failures, _) = check_page("tutorial (broken)", &broken);
     assert_eq!(failures.len(), 2, "{failures:#?}");
     assert!(failures[0].contains("sim.dt") && failures[1].contains("duration"), "{failures:#?}");
+}
+
+/// The fields of the scenario table at `prefix` ("" or "a.b.") as the code's deserializer
+/// names them (serde's "expected one of" for an unknown field), or None when `prefix` is not a
+/// table of named fields.
+fn code_fields(prefix: &str) -> Option<Vec<String>> {
+    let set = format!("{prefix}zz_not_a_key=1");
+    let e = exoleg::Scenario::from_toml_str("keys", "", &[set]).err()?.to_string();
+    // serde: "unknown field `x`, expected `a`", "... expected `a` or `b`", "... expected one
+    // of `a`, `b`, `c`" (an enum's "unknown variant" is not a table).
+    let list = e.split("unknown field `zz_not_a_key`, expected ").nth(1)?;
+    let list = list.strip_prefix("one of ").unwrap_or(list);
+    Some(list.split(", ").flat_map(|f| f.split(" or ")).map(|f| f.trim().trim_matches('`').to_string()).collect())
+}
+
+/// Every scenario key the code reads, depth first (tables included).
+fn code_keys(prefix: &str, depth: usize, out: &mut Vec<String>) {
+    for f in code_fields(prefix).unwrap_or_default() {
+        let key = format!("{prefix}{f}");
+        out.push(key.clone());
+        if depth < 4 {
+            code_keys(&format!("{key}."), depth + 1, out);
+        }
+    }
+}
+
+/// The keys a Markdown keys table documents: the backticked names of each row's first cell,
+/// `.name` continuing the previous key's table, `{a,b}` for each of a and b.
+fn documented_keys(md: &str) -> std::collections::BTreeSet<String> {
+    let mut keys = std::collections::BTreeSet::new();
+    for line in md.lines().filter(|l| l.starts_with("| `")) {
+        let cell = line.split('|').nth(1).unwrap_or("");
+        let mut table = String::new();
+        for tok in cell.split('`').skip(1).step_by(2) {
+            let tok = tok.split([' ', '=']).next().unwrap_or("").trim();
+            // A key has a dot (or continues a table with one), but for the top-level ones.
+            let key_like = tok.contains('.') || ["seed", "faults"].contains(&tok);
+            if tok.is_empty() || tok.starts_with('[') || tok.starts_with('"') || !key_like {
+                continue;
+            }
+            let full = if let Some(rest) = tok.strip_prefix('.') { format!("{table}{rest}") } else { tok.to_string() };
+            table = full.rfind('.').map_or(String::new(), |i| full[..=i].to_string());
+            // Expand {a,b} groups (at most two).
+            let mut variants = vec![full];
+            while let Some(v) = variants.iter().find(|v| v.contains('{')).cloned() {
+                variants.retain(|x| *x != v);
+                let (open, close) = (v.find('{').unwrap(), v.find('}').unwrap());
+                for alt in v[open + 1..close].split(',') {
+                    variants.push(format!("{}{}{}", &v[..open], alt.trim(), &v[close + 1..]));
+                }
+            }
+            keys.extend(variants);
+        }
+    }
+    keys
+}
+
+/// The scenario keys reference and the code name the same keys: every key the deserializer
+/// reads is in docs/src/reference/scenario-keys.md (itself, or a table documented whole), and
+/// every key the page names is one the code reads. A new key without a row fails here.
+#[test]
+fn the_keys_reference_names_every_key_of_the_code() {
+    let mut code = Vec::new();
+    code_keys("", 0, &mut code);
+    assert!(code.len() > 150, "only {} keys found in the code", code.len());
+    let md = std::fs::read_to_string(root().join("docs/src/reference/scenario-keys.md")).unwrap();
+    let doc = documented_keys(&md);
+    let documented = |k: &str| {
+        let mut p = k.to_string();
+        loop {
+            if doc.contains(&p) {
+                return true;
+            }
+            match p.rfind('.') {
+                Some(i) => p.truncate(i),
+                None => return false,
+            }
+        }
+    };
+    // Tables are documented by their keys (or whole); every leaf must be.
+    let leaves: Vec<&String> = code.iter().filter(|k| !code.iter().any(|c| c.starts_with(&format!("{k}.")))).collect();
+    let missing: Vec<&&String> = leaves.iter().filter(|k| !documented(k)).collect();
+    let code_set: std::collections::BTreeSet<&str> = code.iter().map(String::as_str).collect();
+    let stale: Vec<&String> = doc.iter().filter(|k| !code_set.contains(k.as_str())).collect();
+    assert!(
+        missing.is_empty() && stale.is_empty(),
+        "undocumented keys: {missing:?}\nkeys the page names that the code does not read: {stale:?}"
+    );
+}
+
+/// Every backticked name in the manual's pages (column names, keys, fields).
+fn documented_names() -> Vec<String> {
+    let mut names = Vec::new();
+    for p in pages() {
+        let md = std::fs::read_to_string(&p).unwrap();
+        names.extend(md.split('`').skip(1).step_by(2).flat_map(|t| t.split([',', ' '])).map(|t| t.trim().to_string()));
+    }
+    names
+}
+
+/// `name` matches `pattern`, whose `<...>` parts stand for any non-empty run of characters.
+fn matches(pattern: &str, name: &str) -> bool {
+    let Some(open) = pattern.find('<') else { return pattern == name };
+    let Some(close) = pattern[open..].find('>').map(|c| open + c) else { return false };
+    let (head, rest) = (&pattern[..open], &pattern[close + 1..]);
+    name.starts_with(head) && (head.len() + 1..=name.len()).any(|i| matches(rest, &name[i..]))
+}
+
+/// The output columns reference and the record agree: every column of a run with the most
+/// columns (the leg walking on the reduced engine, the device's sensors, a fault, the muscle
+/// wearer with its per-muscle columns) is named in the manual, as itself or as a pattern such
+/// as `muscle_<name>_activation`.
+#[test]
+fn the_manual_names_every_output_column() {
+    let sets = [
+        "leg.engine=\"reduced\"",
+        "sim.dt_s=0.001",
+        "sim.duration_s=0.05",
+        "metrics.settle_s=0.01",
+        "sensors.preset=\"device\"",
+        "wearer.model=\"muscles\"",
+        "output.muscles=true",
+        "faults=[{ kind = \"bias\", target = \"force_n\", onset_s = 0.01, bias = 10.0 }]",
+    ];
+    let sc = exoleg::load(Some(&root().join("assets/scenarios/treadmill_subject.toml")), &sets).unwrap();
+    let (_, record) = exoleg::run_in_memory(&sc.model).unwrap();
+    let columns: Vec<String> = record.columns().into_iter().map(|(n, _)| n).collect();
+    assert!(columns.len() > 100, "{} columns", columns.len());
+    let names = documented_names();
+    let missing: Vec<&String> = columns.iter().filter(|c| !names.iter().any(|n| matches(n, c))).collect();
+    assert!(missing.is_empty(), "columns the manual does not name: {missing:?}");
 }
