@@ -64,6 +64,17 @@ pub use sim::{Model, Simulation};
 
 /// Load, validate and resolve a scenario in one call (`None` = the embedded default), with
 /// `--set`-style overrides. Convenient for tests and the library API.
+///
+/// ```
+/// // The embedded default (the paper's Figure 5 case) on the bench plant, 0.2 s.
+/// let sc = exoleg::load(None, &["plant.kind=\"bench\"", "sim.duration_s=0.2"]).unwrap();
+/// let (summary, record) = exoleg::run_in_memory(&sc.model).unwrap();
+/// assert!(summary.max_abs_force_error_n.is_finite());
+/// assert!(record.columns().iter().any(|(name, _)| name == "load_force_n"));
+/// // A key that does not exist is an error that names it.
+/// let e = exoleg::load(None, &["sim.dt=0.001"]).unwrap_err();
+/// assert!(e.to_string().contains("sim.dt"));
+/// ```
 pub fn load(path: Option<&std::path::Path>, sets: &[&str]) -> Result<ResolvedScenario> {
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
     Scenario::load(path, &sets)?.resolve(&Resources::new())

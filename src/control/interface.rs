@@ -285,6 +285,24 @@ pub use crate::faults::StopCause;
 /// (zero-order hold): the built-in firmware controllers, and every controller from outside the
 /// crate (put one in a run with [`crate::sim::Simulation::with_controller`] or
 /// [`crate::study::RunBuilder`]).
+///
+/// ```
+/// use exoleg::control::{ControlOutput, ControlStop, DiscreteController, SampleInput};
+/// /// A proportional force loop (valve command per newton of error).
+/// struct P(f64);
+/// impl DiscreteController for P {
+///     fn kind(&self) -> &str { "p" }
+///     fn update(&mut self, s: &SampleInput) -> Result<ControlOutput, ControlStop> {
+///         Ok(ControlOutput::command(self.0 * (s.r.value - s.y.force_n)))
+///     }
+/// }
+/// let sets = ["plant.kind=\"bench\"", "sim.duration_s=0.2", "controller.sample_period_s=0.001"];
+/// let sc = exoleg::load(None, &sets).unwrap();
+/// let mut sim = exoleg::Simulation::with_controller(sc.model.clone(), Box::new(P(1e-4))).unwrap();
+/// while !sim.done() {
+///     sim.step(&mut exoleg::record::NullSink).unwrap();
+/// }
+/// ```
 pub trait DiscreteController: Send {
     /// Short name for reports (the built-in ones use their `controller.kind`).
     fn kind(&self) -> &str;

@@ -130,6 +130,27 @@ pub enum ControllerSource {
 }
 
 /// A running simulation (MuJoCo's `mjData` with the step that advances it).
+///
+/// A loop you own: at each sample instant read the sensors ([`Simulation::sample`]), give a
+/// command ([`Simulation::hold`]), then step to the next instant ([`Simulation::advance`]).
+///
+/// ```
+/// use exoleg::control::ControlOutput;
+/// use std::sync::Arc;
+/// let sets = ["plant.kind=\"bench\"", "sim.duration_s=0.1", "controller.sample_period_s=0.001"];
+/// let sc = exoleg::load(None, &sets).unwrap();
+/// let mut sim = exoleg::Simulation::external(Arc::clone(&sc.model)).unwrap();
+/// let mut sink = exoleg::record::NullSink;
+/// while !sim.done() {
+///     if sim.is_sample_step() {
+///         let s = sim.sample().unwrap();
+///         let e = s.r.value - s.y.force_n; // desired minus measured load force (N)
+///         sim.hold(ControlOutput::command(1e-4 * e)).unwrap();
+///     }
+///     sim.advance(&mut sink).unwrap();
+/// }
+/// assert!((sim.t_s() - 0.1).abs() < 1e-9);
+/// ```
 pub struct Simulation {
     sc: Arc<Model>,
     plant: Box<dyn Plant>,
