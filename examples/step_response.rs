@@ -1,11 +1,11 @@
 //! The wearer's answer to a step of device moment in mid-stance (issue 40; the README figure
-//! `docs/step_response.png`): the reduced treadmill (treadmill_subject at 1 ms) with an ideal
+//! `docs/src/images/step_response.png`): the reduced treadmill (treadmill_subject at 1 ms) with an ideal
 //! device that gives nothing but a 10 N m flexion step 25 % into the third stride, once with
 //! the muscle wearer and once with the impedance wearer, each against the same run without
 //! the step.
 //!
 //! ```sh
-//! cargo run --release --example step_response             # writes docs/step_response.png
+//! cargo run --release --example step_response             # writes docs/src/images/step_response.png
 //! cargo run --release --example step_response -- out.png
 //! ```
 
@@ -50,7 +50,7 @@ fn change(pushed: &MemoryRecord, calm: &MemoryRecord, name: &str) -> Vec<(f64, f
 fn main() {
     let out = std::env::args()
         .nth(1)
-        .map_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/step_response.png"), PathBuf::from);
+        .map_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/src/images/step_response.png"), PathBuf::from);
     let (m_calm, m_push) = (run(true, 0.0), run(true, STEP_NM));
     let (i_calm, i_push) = (run(false, 0.0), run(false, STEP_NM));
     let (blue, orange, grey) = (RGBColor(31, 119, 180), RGBColor(230, 120, 20), RGBColor(120, 120, 120));
