@@ -53,3 +53,34 @@ def test_the_stubs_declare_every_public_name_with_its_parameters():
             stub = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
             real = list(inspect.signature(obj).parameters)
             assert stub == real, f"exoleg.{name}: stub {stub} != {real}"
+
+
+def _python_blocks():
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    pages = [os.path.join(root, "README.md")]
+    for d, _, files in os.walk(os.path.join(root, "docs", "src")):
+        pages += [os.path.join(d, f) for f in sorted(files) if f.endswith(".md")]
+    blocks = []
+    for page in pages:
+        lines = open(page).read().split("\n")
+        i = 0
+        while i < len(lines):
+            if lines[i].strip() == "```python run":
+                j = i + 1
+                while not lines[j].startswith("```"):
+                    j += 1
+                blocks.append((f"{os.path.relpath(page, root)}:{i + 1}", "\n".join(lines[i + 1 : j])))
+                i = j
+            i += 1
+    return root, blocks
+
+
+def test_the_manuals_python_blocks_run(tmp_path, monkeypatch):
+    root, blocks = _python_blocks()
+    assert blocks, "no block marked python run"
+    monkeypatch.chdir(root)
+    for where, code in blocks:
+        try:
+            exec(compile(code, where, "exec"), {})
+        except Exception as e:  # noqa: BLE001 - name the block
+            raise AssertionError(f"{where}: {e!r}") from e
