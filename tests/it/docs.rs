@@ -18,6 +18,9 @@ fn root() -> &'static Path {
 enum Kind {
     Shell,
     Scenario,
+    /// ```` ```text output ````: lines the shell block before it prints (in order, among others),
+    /// each figure within the precision shown.
+    Output,
 }
 
 /// The marked blocks of a Markdown page: (line of the fence, kind, text).
@@ -32,6 +35,7 @@ fn blocks(md: &str) -> Vec<(usize, Kind, String)> {
                 let kind = match info.as_slice() {
                     ["sh", "run"] => Some(Kind::Shell),
                     ["toml", "scenario"] => Some(Kind::Scenario),
+                    ["text", "output"] => Some(Kind::Output),
                     _ => None,
                 };
                 open = Some((i + 1, kind, String::new()));
@@ -62,8 +66,8 @@ fn workspace() -> tempfile::TempDir {
     ws
 }
 
-/// Run a shell block in `ws`: Err with its output when it fails.
-fn run_shell(ws: &Path, text: &str) -> Result<(), String> {
+/// Run a shell block in `ws`: its standard output, or Err with its output when it fails.
+fn run_shell(ws: &Path, text: &str) -> Result<String, String> {
     let bin = Path::new(exe()).parent().unwrap();
     let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default());
     let script = text.replace("cargo run --release --", "exoleg");
@@ -74,7 +78,7 @@ fn run_shell(ws: &Path, text: &str) -> Result<(), String> {
         .output()
         .map_err(|e| e.to_string())?;
     if o.status.success() {
-        Ok(())
+        Ok(String::from_utf8_lossy(&o.stdout).into_owned())
     } else {
         Err(format!("{}\n{}{}", o.status, String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)))
     }
@@ -96,16 +100,61 @@ fn check_page(name: &str, md: &str) -> (Vec<String>, usize) {
     let ws = workspace();
     let mut failures = Vec::new();
     let found = blocks(md);
+    let mut printed: Option<String> = None;
     for (line, kind, text) in &found {
         let r = match kind {
-            Kind::Shell => run_shell(ws.path(), text),
+            Kind::Shell => run_shell(ws.path(), text).map(|out| printed = Some(out)),
             Kind::Scenario => check_scenario(ws.path(), text),
+            Kind::Output => match printed.take() {
+                Some(out) => shows(text, &out),
+                None => Err("an output block without a shell block that ran before it".into()),
+            },
         };
         if let Err(e) = r {
             failures.push(format!("{name}:{line}: {e}"));
         }
     }
     (failures, found.len())
+}
+
+/// A token as (text before the number, the number, its precision: half a unit of its last
+/// shown digit, text after), or None when it holds no number.
+fn figure(token: &str) -> Option<(&str, f64, f64, &str)> {
+    let start = token.find(|c: char| c.is_ascii_digit() || c == '-' || c == '+')?;
+    let body = &token[start..];
+    let end = body
+        .char_indices()
+        .take_while(|&(i, c)| c.is_ascii_digit() || c == '.' || (i == 0 && (c == '-' || c == '+')) || c == 'e')
+        .last()
+        .map(|(i, c)| i + c.len_utf8())?;
+    let (num, after) = body.split_at(end);
+    let value: f64 = num.parse().ok()?;
+    let (mantissa, exp) = num.split_once('e').map_or((num, 0), |(m, e)| (m, e.parse().unwrap_or(0)));
+    let decimals = mantissa.split_once('.').map_or(0, |(_, d)| d.len() as i32);
+    Some((&token[..start], value, 0.5 * 10f64.powi(exp - decimals), after))
+}
+
+/// `shown` and `got` are the same line: the same words, each figure within the precision shown.
+fn same_line(shown: &str, got: &str) -> bool {
+    let (a, b): (Vec<&str>, Vec<&str>) = (shown.split_whitespace().collect(), got.split_whitespace().collect());
+    a.len() == b.len()
+        && a.iter().zip(&b).all(|(x, y)| match (figure(x), figure(y)) {
+            (Some((px, vx, tol, sx)), Some((py, vy, _, sy))) => {
+                px == py && sx == sy && (vx - vy).abs() <= tol * (1.0 + 1e-9)
+            }
+            _ => x == y,
+        })
+}
+
+/// Every line of `shown` is a line of `out`, in order.
+fn shows(shown: &str, out: &str) -> Result<(), String> {
+    let mut lines = out.lines();
+    for want in shown.lines().filter(|l| !l.trim().is_empty()) {
+        if !lines.any(|got| same_line(want, got)) {
+            return Err(format!("the page shows\n  {want}\nbut the command printed\n{out}"));
+        }
+    }
+    Ok(())
 }
 
 /// The pages: README.md and every Markdown file of docs/src.
@@ -155,8 +204,18 @@ fn a_broken_example_fails() {
     );
     assert_ne!(broken, md);
     let (failures, _) = check_page("tutorial (broken)", &broken);
-    assert_eq!(failures.len(), 2, "{failures:#?}");
-    assert!(failures[0].contains("sim.dt") && failures[1].contains("duration"), "{failures:#?}");
+    // The misspelt command fails, so its output block has nothing to compare: three failures.
+    assert_eq!(failures.len(), 3, "{failures:#?}");
+    assert!(failures[0].contains("sim.dt") && failures[2].contains("duration"), "{failures:#?}");
+    // A shown figure off by more than its precision fails; within it, passes.
+    let shown = "knee error          RMS 1.0801 deg, max 2.5556 deg";
+    assert!(same_line(shown, "knee error          RMS 1.08014 deg, max 2.55555 deg"));
+    assert!(!same_line(shown, "knee error          RMS 1.0807 deg, max 2.5556 deg"));
+    assert!(!same_line(shown, "knee error          RMS 1.0801 rad, max 2.5556 deg"));
+    let off = md.replacen("RMS 1.0801 deg", "RMS 1.0901 deg", 1);
+    assert_ne!(off, md, "the tutorial shows the knee error");
+    let (failures, _) = check_page("tutorial (a shown figure off)", &off);
+    assert!(failures.len() == 1 && failures[0].contains("1.0901"), "{failures:#?}");
 }
 
 /// The fields of the scenario table at `prefix` ("" or "a.b.") as the code's deserializer
