@@ -10,6 +10,7 @@ mod compute_model;
 mod device_sensors;
 mod docs;
 mod end_stops;
+mod examples;
 mod faults;
 mod firmware;
 mod fmu;
