@@ -1,4 +1,5 @@
-//! The summary built row by row as a run records (a record sink): running RMS, maxima and means, the convergence time, the per-stride figures.
+//! The summary built row by row as a run records (a record sink): running RMS, maxima and
+//! means, the convergence time, the per-stride figures.
 
 use super::*;
 

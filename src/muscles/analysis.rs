@@ -136,12 +136,10 @@ pub struct Sample {
     pub values: Vec<f64>,
 }
 
-impl Sample {
-    /// The leg's muscles' metabolic rate over the sample (W; `muscles_metabolic_w`, this leg
-    /// alone, no basal rate).
-    pub fn metabolic_w(&self) -> f64 {
-        self.values[self.values.len() - TOTALS.len()]
-    }
+/// The leg's muscles' metabolic rate (W; `muscles_metabolic_w`: this leg alone, no basal
+/// rate) from a sample's values ([`Sample::values`], or a recorded row's muscle values).
+pub fn metabolic_w(values: &[f64]) -> f64 {
+    values[values.len() - TOTALS.len()]
 }
 
 /// The analysis as it runs: the solver's warm start and the last activations.

@@ -1,4 +1,5 @@
-//! The loop's stepping: one fixed step (record the start, integrate with substeps, check), and the state's report at the end.
+//! The loop's stepping: one fixed step (record the start, integrate with substeps, check), and
+//! the state's report at the end.
 
 use super::*;
 
@@ -80,7 +81,7 @@ impl Simulation {
         }
         row.fault_active = self.any_fault_active(t);
         row.muscles = self.muscle_sample(t);
-        self.muscles_metabolic_w = row.muscles.as_ref().map(|v| v[v.len() - crate::muscles::analysis::TOTALS.len()]);
+        self.muscles_metabolic_w = row.muscles.as_deref().map(crate::muscles::analysis::metabolic_w);
         sink.row(&row)?;
         let cuff_force_n = if self.sc.human.mode == HumanMode::Cuff { w1 } else { 0.0 };
         // The integrator's first stage is s0 unless coupled mechanics now see another cuff force.

@@ -1,4 +1,5 @@
-//! The loop's sample instants: read the sensors, hold the controller's command, the continuous controller, the wearer's and the body's forces.
+//! The loop's sample instants: read the sensors, hold the controller's command, the continuous
+//! controller, the wearer's and the body's forces.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! The plugin as a controller of the loop: the readings in the ABI's layout, its command back, and the instance's life (create, step, destroy).
+//! The plugin as a controller of the loop: the readings in the ABI's layout, its command back,
+//! and the instance's life (create, step, destroy).
 
 use super::*;
 

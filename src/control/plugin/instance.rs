@@ -1,4 +1,5 @@
-//! A plugin's instances: what the host tells them, the setup shared by a run's instances (in process or isolated), creating one, and its status codes as the run takes them.
+//! A plugin's instances: what the host tells them, the setup shared by a run's instances (in
+//! process or isolated), creating one, and its status codes as the run takes them.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! The reduced engine's ground contact: the spheres that touch, their forces, the step's start (the contact anchors) and the contact's stiffness for the step's stability.
+//! The reduced engine's ground contact: the spheres that touch, their forces, the step's start
+//! (the contact anchors) and the contact's stiffness for the step's stability.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! The reduced engine's equations of motion: the mass matrix and the bias forces by the forward pass, the locked coordinates, the compliances, and the accelerations at a state.
+//! The reduced engine's equations of motion: the mass matrix and the bias forces by the forward
+//! pass, the locked coordinates, the compliances, and the accelerations at a state.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! What a URDF leg must be: planar joints, one tree with the cylinder's loop, moving bodies with mass, and the mass properties of bodies merged over fixed joints.
+//! What a URDF leg must be: planar joints, one tree with the cylinder's loop, moving bodies
+//! with mass, and the mass properties of bodies merged over fixed joints.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! The run's figures: force tracking (the paper's Figure 5 layout), knee tracking, what the wearer gets, histograms.
+//! The run's figures: force tracking (the paper's Figure 5 layout), knee tracking, what the
+//! wearer gets, histograms.
 
 use super::*;
 

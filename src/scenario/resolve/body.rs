@@ -1,4 +1,5 @@
-//! The leg's and the body's setup from a scenario: the gait within the leg's range, the start pose, the leg, the walking body's targets and its sole's height.
+//! The leg's and the body's setup from a scenario: the gait within the leg's range, the start
+//! pose, the leg, the walking body's targets and its sole's height.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! The gait a scenario walks: its trajectory, the desired force's reference and cascade, and the walking body's data.
+//! The gait a scenario walks: its trajectory, the desired force's reference and cascade, and
+//! the walking body's data.
 
 use super::*;
 

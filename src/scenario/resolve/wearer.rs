@@ -1,4 +1,5 @@
-//! The muscle wearer's setup: its muscles, gains and delays, and the gait it learns in a run of the impedance wearer.
+//! The muscle wearer's setup: its muscles, gains and delays, and the gait it learns in a run of
+//! the impedance wearer.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! The checks of a leg run: the leg, the wearer and the metrics, the safety limits, walking on the carriage and its combinations.
+//! The checks of a leg run: the leg, the wearer and the metrics, the safety limits, walking on
+//! the carriage and its combinations.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! The device's sensor chain as it runs: each channel's truth (the IMUs' specific force and rate in their frames), its noise, bias, drift and A/D, at its own rate.
+//! The device's sensor chain as it runs: each channel's truth (the IMUs' specific force and
+//! rate in their frames), its noise, bias, drift and A/D, at its own rate.
 
 use super::*;
 
