@@ -25,7 +25,7 @@
 //! delay. What the muscles cannot make (`asked` beyond them) is reported as the reserves and not
 //! applied: a wearer who cannot hold the gait falls behind it.
 
-use crate::muscles::analysis::{Analysis, Joints, MuscleSetup, Sample};
+use crate::muscles::analysis::{Analysis, Joints, MuscleEval, MuscleSetup, Sample};
 use crate::muscles::curves;
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -175,6 +175,12 @@ pub struct MuscleWearer {
     /// The activations static optimisation asks for.
     target: Vec<f64>,
     line: VecDeque<Sensed>,
+    /// The muscles at the body's state of each entry of `line` once evaluated (all but the
+    /// newest while static optimisation runs): its one-joint muscles are what the nervous
+    /// system sees of them a delay later, so they are not evaluated twice.
+    body: VecDeque<Vec<MuscleEval>>,
+    /// The delay line's memory of the muscles, kept for the next entry.
+    spare: Vec<MuscleEval>,
     /// The device's moment the adapted wearer expects per bin of the cycle (N m).
     expected_device_nm: Vec<f64>,
     device: DeviceFelt,
@@ -197,6 +203,8 @@ impl MuscleWearer {
             exc: vec![curves::MIN_ACTIVATION; n],
             target: vec![curves::MIN_ACTIVATION; n],
             line: VecDeque::new(),
+            body: VecDeque::new(),
+            spare: Vec::new(),
             // At first it expects the device it learned the gait with.
             expected_device_nm: setup.feedforward.device_bins().to_vec(),
             device: DeviceFelt { bin: None, felt: vec![None; FEEDFORWARD_BINS] },
@@ -215,14 +223,21 @@ impl MuscleWearer {
         let due = now.t_s - self.setup.delay_s.iter().fold(0.0, |m: f64, &d| m.max(d));
         while self.line.len() > 1 && self.line[1].t_s <= due + 1e-12 {
             self.line.pop_front();
+            if let Some(v) = self.body.pop_front() {
+                self.spare = v;
+            }
         }
     }
 
     /// What the wearer sensed `delay_s` before `t_s` (the oldest it has at the start).
     fn seen(&self, t_s: f64, delay_s: f64) -> &Sensed {
+        &self.line[self.seen_index(t_s, delay_s)]
+    }
+
+    /// The index in the delay line of [`Self::seen`].
+    fn seen_index(&self, t_s: f64, delay_s: f64) -> usize {
         let due = t_s - delay_s + 1e-12;
-        let i = self.line.partition_point(|s| s.t_s <= due);
-        &self.line[i.saturating_sub(1)]
+        self.line.partition_point(|s| s.t_s <= due).saturating_sub(1)
     }
 
     /// The moments the nervous system asks for at `t_s` (N m).
@@ -290,11 +305,14 @@ impl MuscleWearer {
         // joints' state as the nervous system knows it (each a delay late), kept in `exc` until
         // the excitations replace them.
         let mut demand = Joints { moment_nm: asked, ..x.joints };
+        let mut prior: [Option<&[MuscleEval]>; 3] = [None; 3];
         for j in 0..3 {
-            let seen = self.seen(t_s, self.setup.delay_s[j]).joints;
+            let i = self.seen_index(t_s, self.setup.delay_s[j]);
+            let seen = self.line[i].joints;
             (demand.q_rad[j], demand.qd_rad_s[j]) = (seen.q_rad[j], seen.qd_rad_s[j]);
+            prior[j] = self.body.get(i).map(Vec::as_slice);
         }
-        self.reserve_nm = self.analysis.excitations(&demand, &mut self.target);
+        self.reserve_nm = self.analysis.excitations_with(&demand, &mut self.target, prior);
         if !self.started {
             // A person standing in the gait, not a limp leg: activations start where asked.
             self.act.copy_from_slice(&self.target);
@@ -302,6 +320,10 @@ impl MuscleWearer {
             self.started = true;
         }
         self.made_nm = self.analysis.moments(&x.joints, &self.act);
+        let mut kept = std::mem::take(&mut self.spare);
+        kept.clear();
+        kept.extend_from_slice(self.analysis.evals());
+        self.body.push_back(kept);
         self.asked_nm = asked;
         for ((a, u), &target) in self.act.iter().zip(self.exc.iter_mut()).zip(&self.target) {
             *u = excitation_for(*a, target, dt_s, *u);

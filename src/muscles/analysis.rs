@@ -69,6 +69,8 @@ pub struct MuscleSetup {
     constants: Vec<MuscleConstants>,
     /// Each muscle's fibre height `l_opt sin(alpha_opt)` (m).
     heights_m: Vec<f64>,
+    /// Each muscle's joint when its path spans one (index into [`super::path::JOINTS`]).
+    single_joint: Vec<Option<usize>>,
 }
 
 impl MuscleSetup {
@@ -95,7 +97,8 @@ impl MuscleSetup {
             .iter()
             .map(|m| m.params.optimal_fiber_length_m * m.params.pennation_at_optimal_rad.sin())
             .collect();
-        Self { set, cost, model, reserve_nm, body_mass_kg, constants, heights_m }
+        let single_joint = set.muscles.iter().map(|m| (m.path.joints.len() == 1).then(|| m.path.joints[0])).collect();
+        Self { set, cost, model, reserve_nm, body_mass_kg, constants, heights_m, single_joint }
     }
 
     /// The number of values a sample carries.
@@ -142,6 +145,19 @@ pub fn metabolic_w(values: &[f64]) -> f64 {
     values[values.len() - TOTALS.len()]
 }
 
+/// One muscle at a joint state: its moment arms (m), whether the angles were inside its
+/// table, its fibre, active force-length multiplier, the moment column's scale `F_max f_L f_V
+/// cos(alpha)` (N) and its passive force along the tendon (N).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct MuscleEval {
+    arms: [f64; 3],
+    inside: bool,
+    fibre: curves::Fibre,
+    fl: f64,
+    k: f64,
+    pe: f64,
+}
+
 /// The analysis as it runs: the solver's warm start and the last activations.
 #[derive(Debug, Clone)]
 pub struct Analysis {
@@ -151,6 +167,8 @@ pub struct Analysis {
     columns: Vec<Column>,
     passive: Vec<f64>,
     fibres: Vec<(curves::Fibre, f64, f64)>,
+    /// Each muscle at the last state evaluated.
+    evals: Vec<MuscleEval>,
     /// How many muscles were outside their tables at the last state evaluated.
     outside: usize,
     w: Vec<f64>,
@@ -168,6 +186,7 @@ impl Analysis {
             columns: vec![[0.0; 3]; n],
             passive: vec![0.0; n],
             fibres: vec![Default::default(); n],
+            evals: vec![Default::default(); n],
             outside: 0,
             w: vec![1.0; n],
             c: Vec::new(),
@@ -179,32 +198,56 @@ impl Analysis {
         &self.setup
     }
 
+    /// Muscle `i` at the state of `j`.
+    fn eval_muscle(&self, i: usize, j: &Joints) -> MuscleEval {
+        let set = &self.setup.set;
+        let (l, arms, inside) = set.length_arms_inside(i, j.q_rad);
+        let v_mt = -(arms[0] * j.qd_rad_s[0] + arms[1] * j.qd_rad_s[1] + arms[2] * j.qd_rad_s[2]);
+        let p = &set.muscles[i].params;
+        let w = self.setup.heights_m[i];
+        let fibre = curves::fibre_with_height(l, v_mt, p.tendon_slack_length_m, p.optimal_fiber_length_m, w);
+        let ln = fibre.length_norm.clamp(curves::MIN_NORM_FIBER_LENGTH, curves::MAX_NORM_FIBER_LENGTH);
+        let vn = (fibre.velocity_per_s / p.max_contraction_velocity_lopt_per_s).clamp(-1.0, 1.0);
+        let fl = curves::active_force_length(ln);
+        let k = p.max_isometric_force_n * fl * curves::force_velocity(vn) * fibre.cos_pennation;
+        let pe = p.max_isometric_force_n * curves::passive_force_length(ln) * fibre.cos_pennation;
+        MuscleEval { arms, inside, fibre, fl, k, pe }
+    }
+
     /// The muscles at `j`: fibres, the moment columns and the passive moments.
     fn muscles_at(&mut self, j: &Joints) -> ([f64; 3], usize) {
-        let set = &self.setup.set;
+        self.muscles_at_with(j, [None; 3])
+    }
+
+    /// [`Self::muscles_at`], a one-joint muscle of joint `k` taken from `prior[k]` (the muscles
+    /// at a state with the same angle and rate of joint `k`, [`Self::evals`]) instead of
+    /// evaluated again: the same bits (its length, arm and fibre depend on that joint alone;
+    /// its rate too when the joint's term is not zero, which is checked).
+    fn muscles_at_with(&mut self, j: &Joints, prior: [Option<&[MuscleEval]>; 3]) -> ([f64; 3], usize) {
         let mut passive_moment = [0.0; 3];
         let mut outside = 0;
-        for (i, m) in set.muscles.iter().enumerate() {
-            let (l, arms, inside) = set.length_arms_inside(i, j.q_rad);
-            outside += usize::from(!inside);
-            let v_mt = -(arms[0] * j.qd_rad_s[0] + arms[1] * j.qd_rad_s[1] + arms[2] * j.qd_rad_s[2]);
-            let p = &m.params;
-            let w = self.setup.heights_m[i];
-            let f = curves::fibre_with_height(l, v_mt, p.tendon_slack_length_m, p.optimal_fiber_length_m, w);
-            let ln = f.length_norm.clamp(curves::MIN_NORM_FIBER_LENGTH, curves::MAX_NORM_FIBER_LENGTH);
-            let vn = (f.velocity_per_s / p.max_contraction_velocity_lopt_per_s).clamp(-1.0, 1.0);
-            let fl = curves::active_force_length(ln);
-            let k = p.max_isometric_force_n * fl * curves::force_velocity(vn) * f.cos_pennation;
-            let pe = p.max_isometric_force_n * curves::passive_force_length(ln) * f.cos_pennation;
-            self.columns[i] = arms.map(|r| r * k);
-            self.passive[i] = pe;
-            for (pm, r) in passive_moment.iter_mut().zip(arms) {
-                *pm += r * pe;
+        for i in 0..self.evals.len() {
+            let reused = self.setup.single_joint[i].and_then(|k| {
+                let e = prior[k]?[i];
+                (e.arms[k] * j.qd_rad_s[k] != 0.0).then_some(e)
+            });
+            let e = reused.unwrap_or_else(|| self.eval_muscle(i, j));
+            outside += usize::from(!e.inside);
+            self.columns[i] = e.arms.map(|r| r * e.k);
+            self.passive[i] = e.pe;
+            for (pm, r) in passive_moment.iter_mut().zip(e.arms) {
+                *pm += r * e.pe;
             }
-            self.fibres[i] = (f, fl, k);
+            self.fibres[i] = (e.fibre, e.fl, e.k);
+            self.evals[i] = e;
         }
         self.outside = outside;
         (passive_moment, outside)
+    }
+
+    /// Each muscle at the last state evaluated (for [`Self::excitations_with`]).
+    pub fn evals(&self) -> &[MuscleEval] {
+        &self.evals
     }
 
     /// The metabolic rate (W) of muscle `i` at activation `a`.
@@ -241,7 +284,12 @@ impl Analysis {
     /// Static optimisation at `j`: `self.act` the activations that make `j.moment_nm`; the
     /// reserves (what the muscles cannot, N m) and how many muscles left their tables.
     fn optimise(&mut self, j: &Joints) -> ([f64; 3], usize) {
-        let (passive_moment, outside) = self.muscles_at(j);
+        self.optimise_with(j, [None; 3])
+    }
+
+    /// [`Self::optimise`] with the one-joint muscles of `prior` ([`Self::muscles_at_with`]).
+    fn optimise_with(&mut self, j: &Joints, prior: [Option<&[MuscleEval]>; 3]) -> ([f64; 3], usize) {
+        let (passive_moment, outside) = self.muscles_at_with(j, prior);
         let b = [0, 1, 2].map(|k| j.moment_nm[k] - passive_moment[k]);
         self.w.iter_mut().for_each(|w| *w = 1.0);
         self.c.clear();
@@ -257,7 +305,13 @@ impl Analysis {
     /// The excitations a nervous system sends for the moments `j.moment_nm` at the state of
     /// `j` (static optimisation, into `out`); the reserves: what the muscles cannot (N m).
     pub fn excitations(&mut self, j: &Joints, out: &mut [f64]) -> [f64; 3] {
-        let (reserve, _) = self.optimise(j);
+        self.excitations_with(j, out, [None; 3])
+    }
+
+    /// [`Self::excitations`], the one-joint muscles of joint `k` taken from `prior[k]`: the
+    /// muscles ([`Self::evals`]) at a state whose joint `k` had the angle and rate of `j`'s.
+    pub fn excitations_with(&mut self, j: &Joints, out: &mut [f64], prior: [Option<&[MuscleEval]>; 3]) -> [f64; 3] {
+        let (reserve, _) = self.optimise_with(j, prior);
         out.copy_from_slice(&self.act);
         reserve
     }
