@@ -9,6 +9,7 @@
 
 use super::metabolics::{MetabolicModel, MuscleConstants, MuscleState};
 use super::optimize::{Column, Problem, Solver};
+use super::path::Axis;
 use super::{curves, MuscleSet};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -71,6 +72,11 @@ pub struct MuscleSetup {
     heights_m: Vec<f64>,
     /// Each muscle's joint when its path spans one (index into [`super::path::JOINTS`]).
     single_joint: Vec<Option<usize>>,
+    /// Per muscle, the grid of each spanned joint as an index into the set's distinct grids
+    /// (their axes at a state are computed once for every muscle on them).
+    grid_of: Vec<[usize; 3]>,
+    /// How many distinct grids the paths have.
+    grids: usize,
 }
 
 impl MuscleSetup {
@@ -98,7 +104,24 @@ impl MuscleSetup {
             .map(|m| m.params.optimal_fiber_length_m * m.params.pennation_at_optimal_rad.sin())
             .collect();
         let single_joint = set.muscles.iter().map(|m| (m.path.joints.len() == 1).then(|| m.path.joints[0])).collect();
-        Self { set, cost, model, reserve_nm, body_mass_kg, constants, heights_m, single_joint }
+        let mut keys = Vec::new();
+        let grid_of = set
+            .muscles
+            .iter()
+            .map(|m| {
+                let mut g = [0; 3];
+                for (k, slot) in g.iter_mut().enumerate().take(m.path.joints.len()) {
+                    let key = m.path.grid(k);
+                    *slot = keys.iter().position(|x| *x == key).unwrap_or_else(|| {
+                        keys.push(key);
+                        keys.len() - 1
+                    });
+                }
+                g
+            })
+            .collect();
+        let grids = keys.len();
+        Self { set, cost, model, reserve_nm, body_mass_kg, constants, heights_m, single_joint, grid_of, grids }
     }
 
     /// The number of values a sample carries.
@@ -169,6 +192,8 @@ pub struct Analysis {
     fibres: Vec<(curves::Fibre, f64, f64)>,
     /// Each muscle at the last state evaluated.
     evals: Vec<MuscleEval>,
+    /// The distinct grids' axes at the state being evaluated (None: not yet computed).
+    axes: Vec<Option<Axis>>,
     /// How many muscles were outside their tables at the last state evaluated.
     outside: usize,
     w: Vec<f64>,
@@ -178,7 +203,7 @@ pub struct Analysis {
 impl Analysis {
     /// A fresh analysis.
     pub fn new(setup: Arc<MuscleSetup>) -> Self {
-        let n = setup.set.muscles.len();
+        let (n, grids) = (setup.set.muscles.len(), setup.grids);
         Self {
             setup,
             solver: Solver::default(),
@@ -187,6 +212,7 @@ impl Analysis {
             passive: vec![0.0; n],
             fibres: vec![Default::default(); n],
             evals: vec![Default::default(); n],
+            axes: vec![None; grids],
             outside: 0,
             w: vec![1.0; n],
             c: Vec::new(),
@@ -198,10 +224,15 @@ impl Analysis {
         &self.setup
     }
 
-    /// Muscle `i` at the state of `j`.
-    fn eval_muscle(&self, i: usize, j: &Joints) -> MuscleEval {
+    /// Muscle `i` at the state of `j`, its path's axes from (and into) `self.axes`.
+    fn eval_muscle(&mut self, i: usize, j: &Joints) -> MuscleEval {
         let set = &self.setup.set;
-        let (l, arms, inside) = set.length_arms_inside(i, j.q_rad);
+        let path = &set.muscles[i].path;
+        let mut axes = [Axis::default(); 3];
+        for (k, a) in axes.iter_mut().enumerate().take(path.joints.len()) {
+            *a = *self.axes[self.setup.grid_of[i][k]].get_or_insert_with(|| path.axis(k, j.q_rad));
+        }
+        let (l, arms, inside) = set.length_arms_inside_axes(i, &axes);
         let v_mt = -(arms[0] * j.qd_rad_s[0] + arms[1] * j.qd_rad_s[1] + arms[2] * j.qd_rad_s[2]);
         let p = &set.muscles[i].params;
         let w = self.setup.heights_m[i];
@@ -226,6 +257,7 @@ impl Analysis {
     fn muscles_at_with(&mut self, j: &Joints, prior: [Option<&[MuscleEval]>; 3]) -> ([f64; 3], usize) {
         let mut passive_moment = [0.0; 3];
         let mut outside = 0;
+        self.axes.iter_mut().for_each(|a| *a = None);
         for i in 0..self.evals.len() {
             let reused = self.setup.single_joint[i].and_then(|k| {
                 let e = prior[k]?[i];

@@ -209,7 +209,17 @@ impl MuscleSet {
 
     /// [`Self::length_and_arms`] and whether the angles are inside the muscle's table.
     pub fn length_arms_inside(&self, i: usize, q_rad: [f64; 3]) -> (f64, [f64; 3], bool) {
-        let (l, d, inside) = self.muscles[i].path.evaluate(q_rad);
+        self.to_scale(self.muscles[i].path.evaluate(q_rad))
+    }
+
+    /// [`Self::length_arms_inside`] from the path's axes at the state
+    /// ([`path::PathTable::axis`]).
+    pub(crate) fn length_arms_inside_axes(&self, i: usize, axes: &[path::Axis; 3]) -> (f64, [f64; 3], bool) {
+        self.to_scale(self.muscles[i].path.evaluate_axes(axes))
+    }
+
+    /// A path's length, slopes and coverage to the scaled length and moment arms.
+    fn to_scale(&self, (l, d, inside): (f64, [f64; 3], bool)) -> (f64, [f64; 3], bool) {
         // (+ 0.0: a joint the path does not span has a zero arm, not -0.)
         (self.scale * l, d.map(|x| -self.scale * x + 0.0), inside)
     }

@@ -32,7 +32,7 @@ pub struct PathTable {
 /// Per spanned joint: up to four grid indices and the weights of the value and of its slope
 /// (per grid step) at a point.
 #[derive(Debug, Clone, Copy, Default)]
-struct Axis {
+pub(crate) struct Axis {
     index: [usize; 4],
     w: [f64; 4],
     dw: [f64; 4],
@@ -102,11 +102,27 @@ impl PathTable {
 
     /// [`Self::length_and_slope`] and whether the angles are inside the grid.
     pub fn evaluate(&self, q_rad: [f64; 3]) -> (f64, [f64; 3], bool) {
-        let d = self.joints.len();
         let mut axes = [Axis::default(); 3];
-        for (k, &j) in self.joints.iter().enumerate() {
-            axes[k] = Axis::at(q_rad[j].to_degrees(), self.start_deg[k], self.step_deg[k], self.count[k]);
+        for (k, a) in axes.iter_mut().enumerate().take(self.joints.len()) {
+            *a = self.axis(k, q_rad);
         }
+        self.evaluate_axes(&axes)
+    }
+
+    /// The grid of spanned joint `k` (its joint, first angle, step and points): paths with the
+    /// same grid share its [`Self::axis`] at a state.
+    pub(crate) fn grid(&self, k: usize) -> (usize, u64, u64, usize) {
+        (self.joints[k], self.start_deg[k].to_bits(), self.step_deg[k].to_bits(), self.count[k])
+    }
+
+    /// Spanned joint `k`'s grid indices and weights at the angles `q_rad`.
+    pub(crate) fn axis(&self, k: usize, q_rad: [f64; 3]) -> Axis {
+        Axis::at(q_rad[self.joints[k]].to_degrees(), self.start_deg[k], self.step_deg[k], self.count[k])
+    }
+
+    /// [`Self::evaluate`] from the spanned joints' axes (`axes[k]` of [`Self::axis`]).
+    pub(crate) fn evaluate_axes(&self, axes: &[Axis; 3]) -> (f64, [f64; 3], bool) {
+        let d = self.joints.len();
         let (mut l, dl) = match d {
             1 => self.sum1(&axes[0]),
             2 => self.sum2(&axes[0], &axes[1]),
