@@ -49,6 +49,7 @@ pub mod metrics;
 pub mod muscles;
 pub mod output;
 pub mod plant;
+pub mod profile;
 pub mod record;
 pub mod reference;
 pub mod scenario;

@@ -15,7 +15,12 @@ fn main() {
         }
         Err(e) => e.exit(),
     };
-    match exoleg::cli::run(cli) {
+    let result = exoleg::cli::run(cli);
+    // Built with the feature `stage-timing`: where the loops' time went (src/profile.rs).
+    if let Some(table) = exoleg::profile::report() {
+        eprintln!("stage costs (feature stage-timing):\n{table}");
+    }
+    match result {
         Ok(code) => exoleg::cli::exit(code),
         Err(e) => {
             eprintln!("error: {e}");

@@ -46,8 +46,16 @@ impl<S: RecordSink + ?Sized> RecordSink for Fan<'_, S> {
         self.muscles.as_mut().map_or(Ok(()), |w| w.start(layout))
     }
     fn row(&mut self, row: &Row) -> Result<()> {
-        self.metrics.row(row)?;
-        self.sink.row(row)?;
+        use crate::profile::{scope, Stage};
+        {
+            let _timed = scope(Stage::Metrics);
+            self.metrics.row(row)?;
+        }
+        {
+            let _timed = scope(Stage::Recording);
+            self.sink.row(row)?;
+        }
+        let _timed = scope(Stage::Metrics);
         self.walking.as_mut().map_or(Ok(()), |w| w.row(row))?;
         self.wearer.as_mut().map_or(Ok(()), |w| w.row(row))?;
         self.safety.as_mut().map_or(Ok(()), |w| w.row(row))?;
@@ -213,6 +221,7 @@ impl<S: RecordSink> Session<S> {
         let sim = &self.sim;
         let sc = sim.model();
         let mut summary = self.metrics.finish(self.wall.as_secs_f64());
+        crate::profile::count_loop(sim.steps_taken() as u64, self.wall.as_nanos() as u64);
         summary.contact = self.walking.map(|w| w.finish());
         summary.wearer = self.wearer.and_then(|w| w.finish());
         if let Some(w) = summary.wearer.as_mut() {

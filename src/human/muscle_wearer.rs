@@ -306,11 +306,11 @@ impl MuscleWearer {
         // the excitations replace them.
         let mut demand = Joints { moment_nm: asked, ..x.joints };
         let mut prior: [Option<&[MuscleEval]>; 3] = [None; 3];
-        for j in 0..3 {
+        for (j, p) in prior.iter_mut().enumerate() {
             let i = self.seen_index(t_s, self.setup.delay_s[j]);
             let seen = self.line[i].joints;
             (demand.q_rad[j], demand.qd_rad_s[j]) = (seen.q_rad[j], seen.qd_rad_s[j]);
-            prior[j] = self.body.get(i).map(Vec::as_slice);
+            *p = self.body.get(i).map(Vec::as_slice);
         }
         self.reserve_nm = self.analysis.excitations_with(&demand, &mut self.target, prior);
         if !self.started {

@@ -454,6 +454,7 @@ impl Plant for LegPlant {
     }
 
     fn advance(&mut self, t_s: f64, inputs: &PlantInputs<'_>) -> Result<f64> {
+        let _timed = crate::profile::scope(crate::profile::Stage::Plant);
         let dt_s = self.dt_s;
         let q = self.leg.knee_angle_rad();
         // Interaction: positive w1 resists a lengthening surplus of the actuator, so it pushes

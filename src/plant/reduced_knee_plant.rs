@@ -120,6 +120,7 @@ impl CoupledMechanics for ReducedLegPlant {
     }
 
     fn stage(&self, t_s: f64, x: &[f64], inputs: &StageInputs, dx: &mut [f64]) -> CoupledStage {
+        let _timed = crate::profile::scope(crate::profile::Stage::Plant);
         let (q, qd) = (x[0], x[1]);
         let (l, arm, arm_slope) = self.model.cylinder_kinematics(q);
         let v = arm * qd;
@@ -163,6 +164,7 @@ impl Plant for ReducedLegPlant {
     }
 
     fn advance(&mut self, t_s: f64, inputs: &PlantInputs<'_>) -> Result<f64> {
+        let _timed = crate::profile::scope(crate::profile::Stage::Plant);
         let dt_s = self.dt_s;
         let force = inputs.cylinder_force_n;
         let q0 = self.q;

@@ -258,6 +258,7 @@ impl CoupledMechanics for WalkerPlant {
     }
 
     fn stage(&self, t_s: f64, x: &[f64], inputs: &StageInputs, dx: &mut [f64]) -> CoupledStage {
+        let _timed = crate::profile::scope(crate::profile::Stage::Plant);
         let mut s = [0.0; NX];
         s.copy_from_slice(&x[..NX]);
         let (s, hip_accel_rad_s2) = self.with_hip(t_s, &s);
@@ -319,6 +320,7 @@ impl Plant for WalkerPlant {
     }
 
     fn advance(&mut self, t_s: f64, inputs: &PlantInputs<'_>) -> Result<f64> {
+        let _timed = crate::profile::scope(crate::profile::Stage::Plant);
         let dt_s = self.dt_s;
         let force = inputs.cylinder_force_n;
         let m_eff = self.effective_mass_kg();

@@ -59,7 +59,10 @@ impl Simulation {
             };
             (self.plant.piston_at(t + dt).position_m, stroke - seen)
         });
-        self.sc.cylinder.end_step_with(&mut self.state.hyd, missed, &self.held.valve);
+        {
+            let _timed = crate::profile::scope(crate::profile::Stage::Hydraulics);
+            self.sc.cylinder.end_step_with(&mut self.state.hyd, missed, &self.held.valve);
+        }
         self.k += 1;
         self.check(t + dt)
     }
@@ -94,6 +97,7 @@ impl Simulation {
     /// hip's anatomical flexion, the thigh's angle plus the data's pelvic tilt) and the moments
     /// the body applies over the step.
     pub(super) fn muscle_sample(&mut self, t: f64) -> Option<Arc<[f64]>> {
+        let _timed = crate::profile::scope(crate::profile::Stage::Wearer);
         if let Some(w) = &self.wearer {
             return w.sample_at(t).map(|s| Arc::from(&s.values[..]));
         }

@@ -18,13 +18,19 @@ impl Simulation {
         let mut dmech = [0.0; MAX_MECH];
         let (x, dx) = (Extra { mech: &self.mech_state, ctrl: &[] }, self.mech_scratch(&mut dmech));
         let s0 = d.evaluate(t, &self.state, x, dx, self.plant.as_ref(), &self.held);
-        let truth = d.truth(&self.state, &self.mech_state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held);
+        let truth = {
+            let _timed = crate::profile::scope(crate::profile::Stage::Sensors);
+            d.truth(&self.state, &self.mech_state, s0.force_rate_n_per_s, self.plant.as_ref(), t, &self.held)
+        };
         let active: Vec<Option<f64>> = (0..self.sc.faults.len()).map(|i| self.fault_active(i, t)).collect();
         let at = |i: usize| active[i];
         let ControlBlock::Sampled(l) = &mut self.control else { unreachable!("is_sample_step") };
         let hook =
             (!l.sensor_faults.is_empty()).then_some((&mut l.sensor_faults, t, &at as &dyn Fn(usize) -> Option<f64>));
-        let (y, counts) = l.sensors.sample_with(&truth, hook);
+        let (y, counts) = {
+            let _timed = crate::profile::scope(crate::profile::Stage::Sensors);
+            l.sensors.sample_with(&truth, hook)
+        };
         l.sampled = Some(self.k);
         l.awaiting = Some(self.k);
         // The outer loop compares each reading with the reference at the reading's time,
@@ -47,7 +53,10 @@ impl Simulation {
         let hook =
             (!l.sensor_faults.is_empty()).then_some((&mut l.sensor_faults, t, &at as &dyn Fn(usize) -> Option<f64>));
         let (device, device_counts) = match (&mut l.device, device_truth) {
-            (Some(dev), Some(dt)) => dev.sample_with(&dt, hook),
+            (Some(dev), Some(dt)) => {
+                let _timed = crate::profile::scope(crate::profile::Stage::Sensors);
+                dev.sample_with(&dt, hook)
+            }
             _ => Default::default(),
         };
         if !self.sc.faults.is_empty() || self.faults.stopped.is_some() {
@@ -174,7 +183,11 @@ impl Simulation {
             let last = l.hold.value();
             return self.hold(last);
         }
-        let out = match ctrl.update(&input) {
+        let updated = {
+            let _timed = crate::profile::scope(crate::profile::Stage::Controller);
+            ctrl.update(&input)
+        };
+        let out = match updated {
             Ok(out) => out,
             Err(e) if self.sc.on_stop == crate::control::OnStop::Failsafe => {
                 self.go_failsafe(t, e);
@@ -230,6 +243,7 @@ impl Simulation {
     /// The body's forces on the carriage for the step from `t` (the human's other half, next
     /// to w1): its force laws at the body's state and the data's sample.
     pub(super) fn body_forces(&mut self, t: f64) -> Option<crate::human::BodyForces> {
+        let _timed = crate::profile::scope(crate::profile::Stage::Wearer);
         let b = self.sc.leg()?.body.as_ref()?;
         let state = self.plant.body_state()?;
         let mut sample = b.targets.at(t);

@@ -139,6 +139,7 @@ pub(super) struct Dynamics<'a> {
 impl Dynamics<'_> {
     /// Desired force at `t` with the held outer-loop force.
     pub fn reference_at(&self, t: f64, held: &Held) -> RefSample {
+        let _timed = crate::profile::scope(crate::profile::Stage::Reference);
         if !self.sc.desired_force {
             return RefSample { value: f64::NAN, rate: f64::NAN, accel: f64::NAN };
         }
@@ -160,6 +161,7 @@ impl Dynamics<'_> {
     /// The knee trajectory at `t` (gait and pose references), kept for the instants asked
     /// again.
     pub fn knee_at(&self, t: f64) -> Option<RefSample> {
+        let _timed = crate::profile::scope(crate::profile::Stage::Reference);
         self.memo.borrow_mut().knee.get(t, |t| self.sc.reference.knee_at(t))
     }
 
@@ -255,7 +257,10 @@ impl Dynamics<'_> {
             spool_dist_m_per_s: dist.spool.value(t, seed, CHANNEL_SPOOL),
         };
         let kin = PistonKinematics { position_m: piston.position_m, velocity_m_s: piston.velocity_m_s };
-        let rates = self.sc.cylinder.rates_with(&s.hyd, &kin, &inp, &held.valve);
+        let rates = {
+            let _timed = crate::profile::scope(crate::profile::Stage::Hydraulics);
+            self.sc.cylinder.rates_with(&s.hyd, &kin, &inp, &held.valve)
+        };
         let x2 = rates.raw_n_per_s;
         let mut d_acc = dist.force_accel.value(t, seed, CHANNEL_FORCE_ACCEL)
             + dist.state_gain_force * s.hyd.force_n
@@ -339,7 +344,10 @@ impl Dynamics<'_> {
         let mut derivative = State::default();
         let out = match (held.output, self.controller) {
             (Some(o), _) => o,
-            (None, Some(c)) => c.output_and_derivatives(t, &r, &y, ctrl, sc.valve_limit, dctrl),
+            (None, Some(c)) => {
+                let _timed = crate::profile::scope(crate::profile::Stage::Controller);
+                c.output_and_derivatives(t, &r, &y, ctrl, sc.valve_limit, dctrl)
+            }
             (None, None) => ControlOutput::default(),
         };
         inp.valve_command = out.valve_command;

@@ -27,6 +27,7 @@ impl WalkerModel {
         q: &mut [f64; NG],
         mut record: Option<&mut Vec<[f64; NG]>>,
     ) -> ContactReading {
+        let _timed = crate::profile::scope(crate::profile::Stage::Contact);
         let mut r = ContactReading::default();
         let mut sum = ReadingSum::default();
         let belt = self.belt_speed_m_s;
