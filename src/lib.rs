@@ -10,7 +10,8 @@
 //! it with the online [`metrics`] and the caller's [`record`] sink ([`output`]: streamed CSV,
 //! JSON, plots); [`study`] builds single runs with any controller, comparisons, sweeps and the
 //! robustness report on top; [`fsio`] is how every file is read (regular, capped) and
-//! written (new or exoleg's own, never a device, a link or an input); [`fmu`] packs the plant as an FMI 2.0 co-simulation FMU (the
+//! written (new or exoleg's own, never a device, a link or an input); [`profile`] times the
+//! loop's stages in a `stage-timing` build; [`fmu`] packs the plant as an FMI 2.0 co-simulation FMU (the
 //! `fmu/` crate exports its C entry points); [`cli`] is the command line.
 //!
 //! Dependencies point one way, from the ground floor up (a module imports only from the
@@ -18,7 +19,7 @@
 //! each other, directly or around a circle):
 //!
 //! ```text
-//! error, integrator
+//! error, integrator, faults, profile
 //! record, hydraulics, sensors, fsio
 //! disturbance, leg, muscles
 //! reference

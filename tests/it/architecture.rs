@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// The top-level modules from the ground floor up: a module may import only from the layers
 /// below its own.
 const LAYERS: [&[&str]; 11] = [
-    &["error", "integrator", "faults"],
+    &["error", "integrator", "faults", "profile"],
     &["record", "hydraulics", "sensors", "fsio"],
     &["disturbance", "leg", "muscles"],
     &["reference"],
