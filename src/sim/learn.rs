@@ -20,6 +20,7 @@ pub fn learn_gait(model: Arc<Model>) -> Result<Feedforward> {
     let from_s = data.gait.stride_s;
     let mut sim = Simulation::new(model)?;
     let mut samples = Vec::with_capacity(sim.sc.steps);
+    let started = std::time::Instant::now();
     while !sim.done() {
         let t = sim.t_s();
         let state = sim.plant.body_state();
@@ -37,6 +38,8 @@ pub fn learn_gait(model: Arc<Model>) -> Result<Feedforward> {
             }
         }
     }
+    // (A `stage-timing` build's table counts this loop's steps with the run's.)
+    crate::profile::count_loop(sim.steps_taken() as u64, started.elapsed().as_nanos() as u64);
     Feedforward::learn(&samples).ok_or_else(|| {
         Error::Usage(format!(
             "the muscle wearer's learning run left a % of the cycle unvisited (stride {} s, step {} s)",
