@@ -188,8 +188,6 @@ pub struct Analysis {
     solver: Solver,
     act: Vec<f64>,
     columns: Vec<Column>,
-    passive: Vec<f64>,
-    fibres: Vec<(curves::Fibre, f64, f64)>,
     /// Each muscle at the last state evaluated.
     evals: Vec<MuscleEval>,
     /// The distinct grids' axes at the state being evaluated (None: not yet computed).
@@ -209,8 +207,6 @@ impl Analysis {
             solver: Solver::default(),
             act: vec![curves::MIN_ACTIVATION; n],
             columns: vec![[0.0; 3]; n],
-            passive: vec![0.0; n],
-            fibres: vec![Default::default(); n],
             evals: vec![Default::default(); n],
             axes: vec![None; grids],
             outside: 0,
@@ -266,11 +262,9 @@ impl Analysis {
             let e = reused.unwrap_or_else(|| self.eval_muscle(i, j));
             outside += usize::from(!e.inside);
             self.columns[i] = e.arms.map(|r| r * e.k);
-            self.passive[i] = e.pe;
             for (pm, r) in passive_moment.iter_mut().zip(e.arms) {
                 *pm += r * e.pe;
             }
-            self.fibres[i] = (e.fibre, e.fl, e.k);
             self.evals[i] = e;
         }
         self.outside = outside;
@@ -289,7 +283,7 @@ impl Analysis {
 
     /// The metabolic rate (W) of muscle `i` at activation `a` under excitation `u`.
     fn rate_of(&self, i: usize, a: f64, u: f64) -> f64 {
-        let (f, fl, k) = self.fibres[i];
+        let MuscleEval { fibre: f, fl, k, pe, .. } = self.evals[i];
         let p = &self.setup.set.muscles[i].params;
         let s = MuscleState {
             excitation: u,
@@ -297,7 +291,7 @@ impl Analysis {
             length_norm: f.length_norm,
             velocity_m_s: f.velocity_per_s * p.optimal_fiber_length_m,
             active_force_n: a * k / f.cos_pennation,
-            passive_force_n: self.passive[i] / f.cos_pennation,
+            passive_force_n: pe / f.cos_pennation,
             force_length: fl,
         };
         self.setup.model.rate_w(&self.setup.constants[i], &s)
@@ -370,12 +364,12 @@ impl Analysis {
         let mut values = Vec::with_capacity(self.setup.width());
         let (mut total_w, mut effort) = (0.0, 0.0);
         for (i, (&a, &u)) in act.iter().zip(exc).enumerate() {
-            let (f, _, k) = self.fibres[i];
+            let MuscleEval { fibre: f, k, pe, .. } = self.evals[i];
             let rate = self.rate_of(i, a, u);
             total_w += rate;
             effort += a * a;
             let active = a * k / f.cos_pennation;
-            values.extend_from_slice(&[a, f.length_norm, f.velocity_per_s, active, a * k + self.passive[i], rate]);
+            values.extend_from_slice(&[a, f.length_norm, f.velocity_per_s, active, a * k + pe, rate]);
         }
         values.extend_from_slice(&[total_w, effort]);
         values.extend_from_slice(&reserve);
