@@ -70,8 +70,6 @@ pub struct MuscleSetup {
     constants: Vec<MuscleConstants>,
     /// Each muscle's fibre height `l_opt sin(alpha_opt)` (m).
     heights_m: Vec<f64>,
-    /// Each muscle's joint when its path spans one (index into [`super::path::JOINTS`]).
-    single_joint: Vec<Option<usize>>,
     /// Per muscle, the grid of each spanned joint as an index into the set's distinct grids
     /// (their axes at a state are computed once for every muscle on them).
     grid_of: Vec<[usize; 3]>,
@@ -103,7 +101,6 @@ impl MuscleSetup {
             .iter()
             .map(|m| m.params.optimal_fiber_length_m * m.params.pennation_at_optimal_rad.sin())
             .collect();
-        let single_joint = set.muscles.iter().map(|m| (m.path.joints.len() == 1).then(|| m.path.joints[0])).collect();
         let mut keys = Vec::new();
         let grid_of = set
             .muscles
@@ -121,7 +118,7 @@ impl MuscleSetup {
             })
             .collect();
         let grids = keys.len();
-        Self { set, cost, model, reserve_nm, body_mass_kg, constants, heights_m, single_joint, grid_of, grids }
+        Self { set, cost, model, reserve_nm, body_mass_kg, constants, heights_m, grid_of, grids }
     }
 
     /// The number of values a sample carries.
@@ -255,7 +252,8 @@ impl Analysis {
         let mut outside = 0;
         self.axes.iter_mut().for_each(|a| *a = None);
         for i in 0..self.evals.len() {
-            let reused = self.setup.single_joint[i].and_then(|k| {
+            let joints = &self.setup.set.muscles[i].path.joints;
+            let reused = (joints.len() == 1).then(|| joints[0]).and_then(|k| {
                 let e = prior[k]?[i];
                 (e.arms[k] * j.qd_rad_s[k] != 0.0).then_some(e)
             });
