@@ -174,6 +174,8 @@ pub struct MuscleWearer {
     exc: Vec<f64>,
     /// The activations static optimisation asks for.
     target: Vec<f64>,
+    /// The activations at the step's end (what the excitations reach).
+    next_act: Vec<f64>,
     line: VecDeque<Sensed>,
     /// The muscles at the body's state of each entry of `line` once evaluated (all but the
     /// newest while static optimisation runs): its one-joint muscles are what the nervous
@@ -202,6 +204,7 @@ impl MuscleWearer {
             act: vec![curves::MIN_ACTIVATION; n],
             exc: vec![curves::MIN_ACTIVATION; n],
             target: vec![curves::MIN_ACTIVATION; n],
+            next_act: vec![curves::MIN_ACTIVATION; n],
             line: VecDeque::new(),
             body: VecDeque::new(),
             spare: Vec::new(),
@@ -325,11 +328,11 @@ impl MuscleWearer {
         kept.extend_from_slice(self.analysis.evals());
         self.body.push_back(kept);
         self.asked_nm = asked;
-        excitations_for(&self.act, &self.target, dt_s, &mut self.exc);
+        excitations_for(&self.act, &self.target, dt_s, &mut self.exc, &mut self.next_act);
         let state = Joints { moment_nm: self.made_nm, ..x.joints };
         let sample = self.analysis.sample_after_moments(&state, &self.act, &self.exc, self.reserve_nm);
         self.last = Some((t_s, sample));
-        activations_after(&mut self.act, &self.exc, dt_s);
+        std::mem::swap(&mut self.act, &mut self.next_act);
         self.made_nm
     }
 
@@ -344,73 +347,69 @@ impl MuscleWearer {
     }
 }
 
-/// De Groote's activation rate at `a` toward `u` as `g (u - a)`: `g` (1/s).
-fn rate_gain(a: f64, u: f64) -> f64 {
-    let (ta, td, b) =
-        (curves::ACTIVATION_TIME_CONSTANT_S, curves::DEACTIVATION_TIME_CONSTANT_S, curves::ACTIVATION_SMOOTHING);
-    if u == a {
-        // The limit of the rate over (u - a): the tanh switch at its middle.
-        let z = 0.5 + 1.5 * a;
-        0.5 / (ta * z) + 0.5 * z / td
-    } else {
-        curves::activation_rate(u, a, ta, td, b) / (u - a)
-    }
+/// De Groote's activation dynamics `da/dt = g(u, a) (u - a)` ([`curves::activation_rate`]):
+/// the gain's slopes at activation `a`, `1 / (tau_a z)` and `z / tau_d` with `z = 1/2 + 3a/2`
+/// (1/s).
+fn gain_slopes(a: f64) -> (f64, f64) {
+    let z = 0.5 + 1.5 * a;
+    (1.0 / (curves::ACTIVATION_TIME_CONSTANT_S * z), z / curves::DEACTIVATION_TIME_CONSTANT_S)
+}
+
+/// The gain `g = (f + 1/2) slope_a + (1/2 - f) slope_d` (1/s) and its derivative in `u`
+/// (1/s) from `th = tanh(b (u - a))`, `f = th / 2`.
+fn gain(th: f64, (slope_a, slope_d): (f64, f64)) -> (f64, f64) {
+    let f = 0.5 * th;
+    let g = (f + 0.5) * slope_a + (0.5 - f) * slope_d;
+    (g, 0.5 * curves::ACTIVATION_SMOOTHING * (1.0 - th * th) * (slope_a - slope_d))
 }
 
 /// The activation after `dt_s` from `a` under excitation `u`, the rate's gain frozen over the
 /// step (exact for that gain; De Groote et al. 2016's dynamics).
 pub fn activation_after(a: f64, u: f64, dt_s: f64) -> f64 {
-    after_gain(a, u, rate_gain(a, u), dt_s)
+    u + (a - u) * kept(a, u, dt_s)
 }
 
-/// [`activation_after`] with the rate's gain `g` (1/s) known.
-fn after_gain(a: f64, u: f64, g: f64, dt_s: f64) -> f64 {
-    u + (a - u) * (-g * dt_s).exp()
+/// The part of its distance to `u` activation `a` keeps over `dt_s`: `exp(-g(u, a) dt)`.
+fn kept(a: f64, u: f64, dt_s: f64) -> f64 {
+    let (g, _) = gain((curves::ACTIVATION_SMOOTHING * (u - a)).tanh(), gain_slopes(a));
+    (-g * dt_s).exp()
 }
 
-/// Muscles whose excitation and activation updates are computed side by side: each phase (the
+/// Muscles whose excitations are computed side by side: each phase of a Newton step (the
 /// gains' tanh, then their exponentials) runs for all of them before the next, so the
 /// processor overlaps their independent work instead of waiting on one muscle's chain of
-/// library calls. The same operations per muscle, so the same bits.
+/// library calls.
 const LANES: usize = 8;
-
-/// [`activation_after`] for every muscle: `a[i]` after `dt_s` under `u[i]`.
-pub fn activations_after(a: &mut [f64], u: &[f64], dt_s: f64) {
-    for (a, u) in a.chunks_mut(LANES).zip(u.chunks(LANES)) {
-        let mut g = [0.0; LANES];
-        for ((g, &a), &u) in g.iter_mut().zip(a.iter()).zip(u) {
-            *g = rate_gain(a, u);
-        }
-        for ((a, &u), &g) in a.iter_mut().zip(u).zip(&g) {
-            *a = after_gain(*a, u, g, dt_s);
-        }
-    }
-}
 
 /// The excitation (0..1) that brings activation `a` to `target` in `dt_s` as fast as the
 /// activation dynamics allow (the inverse of [`activation_after`], computed muscle control's
 /// rule): the target itself when it is reached in the step, else full excitation (rising) or
 /// none (falling), so activations rise and fall at their physiological rates. `guess`: a
 /// starting point (the muscle's excitation a step before: Newton's method from there takes
-/// one or two steps; any value in 0..=1 gives the same answer).
+/// one or two steps; any value in 0..=1 gives the same answer to 1e-13).
 pub fn excitation_for(a: f64, target: f64, dt_s: f64, guess: f64) -> f64 {
-    let mut u = [guess];
-    excitations_for(&[a], &[target], dt_s, &mut u);
+    let (mut u, mut after) = ([guess], [0.0]);
+    excitations_for(&[a], &[target], dt_s, &mut u, &mut after);
     u[0]
 }
 
 /// [`excitation_for`] for every muscle: `u[i]` (its value the guess) the excitation that
-/// brings `a[i]` to `target[i]` in `dt_s`.
-pub fn excitations_for(a: &[f64], target: &[f64], dt_s: f64, u: &mut [f64]) {
-    for ((a, target), u) in a.chunks(LANES).zip(target.chunks(LANES)).zip(u.chunks_mut(LANES)) {
+/// brings `a[i]` to `target[i]` in `dt_s`, and `after[i]` the activation it brings it to
+/// ([`activation_after`] of the excitation, from the solver's last evaluation).
+pub fn excitations_for(a: &[f64], target: &[f64], dt_s: f64, u: &mut [f64], after: &mut [f64]) {
+    let chunks = a.chunks(LANES).zip(target.chunks(LANES)).zip(u.chunks_mut(LANES).zip(after.chunks_mut(LANES)));
+    for ((a, target), (u, after)) in chunks {
         let mut lanes = [Newton::default(); LANES];
         let lanes = &mut lanes[..a.len()];
         for (((l, &a), &target), &u) in lanes.iter_mut().zip(a).zip(target).zip(u.iter()) {
             *l = Newton::new(a, target, u.clamp(0.0, 1.0));
         }
         newton_side_by_side(lanes, dt_s, 6);
-        for (l, u) in lanes.iter().zip(u) {
-            *u = l.settled().unwrap_or_else(|| saturated_excitation(l.a, l.target, dt_s));
+        for ((l, u), after) in lanes.iter().zip(u).zip(after) {
+            (*u, *after) = l.settled().unwrap_or_else(|| {
+                let u = saturated_excitation(l.a, l.target, dt_s);
+                (u, activation_after(l.a, u, dt_s))
+            });
         }
     }
 }
@@ -419,14 +418,14 @@ pub fn excitations_for(a: &[f64], target: &[f64], dt_s: f64, u: &mut [f64]) {
 /// saturated command in that direction, then the command that reaches the target with it
 /// (exact when it saturates: the gain is the saturated one), refined by Newton's method.
 fn saturated_excitation(a: f64, target: f64, dt_s: f64) -> f64 {
-    let e = (-rate_gain(a, if target >= a { 1.0 } else { 0.0 }) * dt_s).exp();
+    let e = kept(a, if target >= a { 1.0 } else { 0.0 }, dt_s);
     let u = ((target - a * e) / (1.0 - e)).clamp(0.0, 1.0);
     if u == 0.0 || u == 1.0 {
         return u;
     }
     let mut lane = [Newton::new(a, target, u)];
     newton_side_by_side(&mut lane, dt_s, 30);
-    lane[0].settled().unwrap_or(u)
+    lane[0].settled().map_or(u, |(u, _)| u)
 }
 
 /// Where one muscle's Newton iteration is.
@@ -439,40 +438,37 @@ enum Progress {
 }
 
 /// Newton's method on h(u) = u + (a - u) exp(-g(u) dt) - target for one muscle, `u` within
-/// 0..=1: settled once a step moves it less than 1e-13 (a bound when the target is out of
-/// reach in the step), failed where h' <= 0.
+/// 0..=1: settled at the `u` it last evaluated once the step from it is under 1e-13 (a bound
+/// when the target is out of reach in the step), failed where h' <= 0.
 #[derive(Debug, Clone, Copy, Default)]
 struct Newton {
     a: f64,
     target: f64,
     u: f64,
-    /// The gain's slopes at `a`: `1 / (tau_a z)` and `z / tau_d`, `z = 1/2 + 3a/2` (1/s).
-    slope_a: f64,
-    slope_d: f64,
+    /// The activation `u` reaches ([`activation_after`]), once evaluated.
+    reached: f64,
+    /// [`gain_slopes`] at `a`.
+    slopes: (f64, f64),
     progress: Progress,
 }
 
 impl Newton {
     fn new(a: f64, target: f64, u: f64) -> Self {
-        let z = 0.5 + 1.5 * a;
-        let slope_a = 1.0 / (curves::ACTIVATION_TIME_CONSTANT_S * z);
-        let slope_d = z / curves::DEACTIVATION_TIME_CONSTANT_S;
-        Self { a, target, u, slope_a, slope_d, progress: Progress::Running }
+        Self { a, target, u, reached: f64::NAN, slopes: gain_slopes(a), progress: Progress::Running }
     }
 
-    /// The excitation once settled.
-    fn settled(&self) -> Option<f64> {
-        (self.progress == Progress::Settled).then_some(self.u)
+    /// The excitation and the activation it reaches, once settled.
+    fn settled(&self) -> Option<(f64, f64)> {
+        (self.progress == Progress::Settled).then_some((self.u, self.reached))
     }
 
     /// One step from `u` with `th = tanh(b (u - a))`.
     fn advance(&mut self, th: f64, dt_s: f64) {
         let (a, u) = (self.a, self.u);
-        let f = 0.5 * th;
-        let g = (f + 0.5) * self.slope_a + (0.5 - f) * self.slope_d;
-        let dg = 0.5 * curves::ACTIVATION_SMOOTHING * (1.0 - th * th) * (self.slope_a - self.slope_d);
+        let (g, dg) = gain(th, self.slopes);
         let e = (-g * dt_s).exp();
-        let h = u + (a - u) * e - self.target;
+        self.reached = u + (a - u) * e;
+        let h = self.reached - self.target;
         let dh = 1.0 - e - (a - u) * e * dt_s * dg;
         if dh <= 0.0 {
             self.progress = Progress::Failed;
@@ -481,8 +477,9 @@ impl Newton {
         let next = (u - h / dh).clamp(0.0, 1.0);
         if (next - u).abs() <= 1e-13 {
             self.progress = Progress::Settled;
+        } else {
+            self.u = next;
         }
-        self.u = next;
     }
 }
 
@@ -507,7 +504,6 @@ fn newton_side_by_side(lanes: &mut [Newton], dt_s: f64, steps: usize) {
         }
     }
 }
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -178,6 +178,15 @@ pub struct MuscleEval {
     pe: f64,
 }
 
+/// One muscle's path and fibre at a joint state: its moment arms (m), whether the angles were
+/// inside its table, its fibre.
+#[derive(Debug, Clone, Copy, Default)]
+struct Geometry {
+    arms: [f64; 3],
+    inside: bool,
+    fibre: curves::Fibre,
+}
+
 /// The analysis as it runs: the solver's warm start and the last activations.
 #[derive(Debug, Clone)]
 pub struct Analysis {
@@ -187,6 +196,8 @@ pub struct Analysis {
     columns: Vec<Column>,
     /// Each muscle at the last state evaluated.
     evals: Vec<MuscleEval>,
+    /// The geometry of each muscle being evaluated (None: reused).
+    geometry: Vec<Option<Geometry>>,
     /// The distinct grids' axes at the state being evaluated (None: not yet computed).
     axes: Vec<Option<Axis>>,
     /// How many muscles were outside their tables at the last state evaluated.
@@ -205,6 +216,7 @@ impl Analysis {
             act: vec![curves::MIN_ACTIVATION; n],
             columns: vec![[0.0; 3]; n],
             evals: vec![Default::default(); n],
+            geometry: vec![None; n],
             axes: vec![None; grids],
             outside: 0,
             w: vec![1.0; n],
@@ -217,8 +229,9 @@ impl Analysis {
         &self.setup
     }
 
-    /// Muscle `i` at the state of `j`, its path's axes from (and into) `self.axes`.
-    fn eval_muscle(&mut self, i: usize, j: &Joints) -> MuscleEval {
+    /// Muscle `i`'s path and fibre at the state of `j`, its path's axes from (and into)
+    /// `self.axes`: the first half of its evaluation ([`Self::curves`] the second).
+    fn geometry(&mut self, i: usize, j: &Joints) -> Geometry {
         let set = &self.setup.set;
         let path = &set.muscles[i].path;
         let mut axes = [Axis::default(); 3];
@@ -230,6 +243,13 @@ impl Analysis {
         let p = &set.muscles[i].params;
         let w = self.setup.heights_m[i];
         let fibre = curves::fibre_with_height(l, v_mt, p.tendon_slack_length_m, p.optimal_fiber_length_m, w);
+        Geometry { arms, inside, fibre }
+    }
+
+    /// Muscle `i` with its geometry `g`: its force-length, force-velocity and passive curves.
+    fn curves(&self, i: usize, g: Geometry) -> MuscleEval {
+        let Geometry { arms, inside, fibre } = g;
+        let p = &self.setup.set.muscles[i].params;
         let ln = fibre.length_norm.clamp(curves::MIN_NORM_FIBER_LENGTH, curves::MAX_NORM_FIBER_LENGTH);
         let vn = (fibre.velocity_per_s / p.max_contraction_velocity_lopt_per_s).clamp(-1.0, 1.0);
         let fl = curves::active_force_length(ln);
@@ -251,19 +271,33 @@ impl Analysis {
         let mut passive_moment = [0.0; 3];
         let mut outside = 0;
         self.axes.iter_mut().for_each(|a| *a = None);
+        // The paths and fibres of the muscles not reused, then their curves: the curves'
+        // library calls of every muscle side by side (independent work the processor
+        // overlaps), the same bits as muscle by muscle.
         for i in 0..self.evals.len() {
             let joints = &self.setup.set.muscles[i].path.joints;
             let reused = (joints.len() == 1).then(|| joints[0]).and_then(|k| {
                 let e = prior[k]?[i];
                 (e.arms[k] * j.qd_rad_s[k] != 0.0).then_some(e)
             });
-            let e = reused.unwrap_or_else(|| self.eval_muscle(i, j));
+            self.geometry[i] = match reused {
+                Some(e) => {
+                    self.evals[i] = e;
+                    None
+                }
+                None => Some(self.geometry(i, j)),
+            };
+        }
+        for i in 0..self.evals.len() {
+            if let Some(g) = self.geometry[i] {
+                self.evals[i] = self.curves(i, g);
+            }
+            let e = self.evals[i];
             outside += usize::from(!e.inside);
             self.columns[i] = e.arms.map(|r| r * e.k);
             for (pm, r) in passive_moment.iter_mut().zip(e.arms) {
                 *pm += r * e.pe;
             }
-            self.evals[i] = e;
         }
         self.outside = outside;
         (passive_moment, outside)
