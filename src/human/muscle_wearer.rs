@@ -428,6 +428,10 @@ fn saturated_excitation(a: f64, target: f64, dt_s: f64) -> f64 {
     lane[0].settled().map_or(u, |(u, _)| u)
 }
 
+/// A Newton step at most this long (in excitation) settles an excitation inside 0..1: the
+/// next would be about `h''/(2h') step^2`, under 1e-13 for the curvatures of these dynamics.
+const QUADRATIC_STEP: f64 = 1e-8;
+
 /// Where one muscle's Newton iteration is.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 enum Progress {
@@ -439,7 +443,8 @@ enum Progress {
 
 /// Newton's method on h(u) = u + (a - u) exp(-g(u) dt) - target for one muscle, `u` within
 /// 0..=1: settled at the `u` it last evaluated once the step from it is under 1e-13 (a bound
-/// when the target is out of reach in the step), failed where h' <= 0.
+/// when the target is out of reach in the step), or inside the bounds at the next once the step
+/// is under [`QUADRATIC_STEP`] (the target reached); failed where h' <= 0.
 #[derive(Debug, Clone, Copy, Default)]
 struct Newton {
     a: f64,
@@ -475,10 +480,17 @@ impl Newton {
             return;
         }
         let next = (u - h / dh).clamp(0.0, 1.0);
-        if (next - u).abs() <= 1e-13 {
+        let step = (next - u).abs();
+        if step <= 1e-13 {
             self.progress = Progress::Settled;
-        } else {
-            self.u = next;
+            return;
+        }
+        self.u = next;
+        if step <= QUADRATIC_STEP && next > 0.0 && next < 1.0 {
+            // Inside the bounds after a step this small, Newton's next step (about
+            // h''/(2h') step^2) is below rounding: `next` reaches the target.
+            self.reached = self.target;
+            self.progress = Progress::Settled;
         }
     }
 }
