@@ -196,8 +196,8 @@ pub struct Analysis {
     columns: Vec<Column>,
     /// Each muscle at the last state evaluated.
     evals: Vec<MuscleEval>,
-    /// The geometry of each muscle being evaluated (None: reused).
-    geometry: Vec<Option<Geometry>>,
+    /// The geometry of each muscle being evaluated.
+    geometry: Vec<Geometry>,
     /// The distinct grids' axes at the state being evaluated (None: not yet computed).
     axes: Vec<Option<Axis>>,
     /// How many muscles were outside their tables at the last state evaluated.
@@ -216,7 +216,7 @@ impl Analysis {
             act: vec![curves::MIN_ACTIVATION; n],
             columns: vec![[0.0; 3]; n],
             evals: vec![Default::default(); n],
-            geometry: vec![None; n],
+            geometry: vec![Geometry::default(); n],
             axes: vec![None; grids],
             outside: 0,
             w: vec![1.0; n],
@@ -258,43 +258,28 @@ impl Analysis {
         MuscleEval { arms, inside, fibre, fl, k, pe }
     }
 
-    /// The muscles at `j`: fibres, the moment columns and the passive moments.
+    /// The muscles at `j`: fibres, the moment columns and the passive moments. The paths and
+    /// fibres of every muscle first, then their curves: the curves' library calls side by side
+    /// (independent work the processor overlaps), the same bits as muscle by muscle.
     fn muscles_at(&mut self, j: &Joints) -> ([f64; 3], usize) {
-        self.muscles_at_with(j, [None; 3])
-    }
-
-    /// [`Self::muscles_at`], a one-joint muscle of joint `k` taken from `prior[k]` (the muscles
-    /// at a state with the same angle and rate of joint `k`, [`Self::evals`]) instead of
-    /// evaluated again: the same bits (its length, arm and fibre depend on that joint alone;
-    /// its rate too when the joint's term is not zero, which is checked).
-    fn muscles_at_with(&mut self, j: &Joints, prior: [Option<&[MuscleEval]>; 3]) -> ([f64; 3], usize) {
-        let mut passive_moment = [0.0; 3];
-        let mut outside = 0;
         self.axes.iter_mut().for_each(|a| *a = None);
-        // The paths and fibres of the muscles not reused, then their curves: the curves'
-        // library calls of every muscle side by side (independent work the processor
-        // overlaps), the same bits as muscle by muscle.
         for i in 0..self.evals.len() {
-            let joints = &self.setup.set.muscles[i].path.joints;
-            let reused = (joints.len() == 1).then(|| joints[0]).and_then(|k| {
-                let e = prior[k]?[i];
-                (e.arms[k] * j.qd_rad_s[k] != 0.0).then_some(e)
-            });
-            self.geometry[i] = match reused {
-                Some(e) => {
-                    self.evals[i] = e;
-                    None
-                }
-                None => Some(self.geometry(i, j)),
-            };
+            self.geometry[i] = self.geometry(i, j);
         }
         for i in 0..self.evals.len() {
-            if let Some(g) = self.geometry[i] {
-                self.evals[i] = self.curves(i, g);
-            }
-            let e = self.evals[i];
+            self.evals[i] = self.curves(i, self.geometry[i]);
+        }
+        self.load()
+    }
+
+    /// The moment columns from [`Self::evals`]; the passive moments (N m) and how many muscles
+    /// are outside their tables.
+    fn load(&mut self) -> ([f64; 3], usize) {
+        let mut passive_moment = [0.0; 3];
+        let mut outside = 0;
+        for (e, col) in self.evals.iter().zip(&mut self.columns) {
             outside += usize::from(!e.inside);
-            self.columns[i] = e.arms.map(|r| r * e.k);
+            *col = e.arms.map(|r| r * e.k);
             for (pm, r) in passive_moment.iter_mut().zip(e.arms) {
                 *pm += r * e.pe;
             }
@@ -303,7 +288,13 @@ impl Analysis {
         (passive_moment, outside)
     }
 
-    /// Each muscle at the last state evaluated (for [`Self::excitations_with`]).
+    /// Every muscle at the state of `j` ([`Self::evals`] after).
+    pub fn evaluate(&mut self, j: &Joints) -> &[MuscleEval] {
+        self.muscles_at(j);
+        &self.evals
+    }
+
+    /// Each muscle at the last state evaluated or loaded.
     pub fn evals(&self) -> &[MuscleEval] {
         &self.evals
     }
@@ -342,42 +333,49 @@ impl Analysis {
     /// Static optimisation at `j`: `self.act` the activations that make `j.moment_nm`; the
     /// reserves (what the muscles cannot, N m) and how many muscles left their tables.
     fn optimise(&mut self, j: &Joints) -> ([f64; 3], usize) {
-        self.optimise_with(j, [None; 3])
+        let (passive_moment, outside) = self.muscles_at(j);
+        (self.optimise_loaded(j.moment_nm, passive_moment), outside)
     }
 
-    /// [`Self::optimise`] with the one-joint muscles of `prior` ([`Self::muscles_at_with`]).
-    fn optimise_with(&mut self, j: &Joints, prior: [Option<&[MuscleEval]>; 3]) -> ([f64; 3], usize) {
-        let (passive_moment, outside) = self.muscles_at_with(j, prior);
-        let b = [0, 1, 2].map(|k| j.moment_nm[k] - passive_moment[k]);
+    /// Static optimisation of `moment_nm` (N m) among the muscles as loaded, whose passive
+    /// moments are `passive_moment` (N m): `self.act`; the reserves (N m).
+    fn optimise_loaded(&mut self, moment_nm: [f64; 3], passive_moment: [f64; 3]) -> [f64; 3] {
+        let b = [0, 1, 2].map(|k| moment_nm[k] - passive_moment[k]);
         self.w.iter_mut().for_each(|w| *w = 1.0);
         self.c.clear();
         let rho = self.setup.reserve_nm;
         let p = Problem { columns: &self.columns, b, w: &self.w, c: &self.c, lo: curves::MIN_ACTIVATION, rho };
-        let mut out = self.solver.solve(&p, &mut self.act);
+        let out = self.solver.solve(&p, &mut self.act);
         if self.setup.cost == MuscleCost::Metabolic {
-            out.reserve_nm = self.metabolic_descent(b);
+            return self.metabolic_descent(b);
         }
-        (out.reserve_nm, outside)
+        out.reserve_nm
     }
 
-    /// The excitations a nervous system sends for the moments `j.moment_nm` at the state of
-    /// `j` (static optimisation, into `out`); the reserves: what the muscles cannot (N m).
-    pub fn excitations(&mut self, j: &Joints, out: &mut [f64]) -> [f64; 3] {
-        self.excitations_with(j, out, [None; 3])
-    }
-
-    /// [`Self::excitations`], the one-joint muscles of joint `k` taken from `prior[k]`: the
-    /// muscles ([`Self::evals`]) at a state whose joint `k` had the angle and rate of `j`'s.
-    pub fn excitations_with(&mut self, j: &Joints, out: &mut [f64], prior: [Option<&[MuscleEval]>; 3]) -> [f64; 3] {
-        let (reserve, _) = self.optimise_with(j, prior);
+    /// The excitations a nervous system sends for the moments `moment_nm` (N m) with each
+    /// muscle as it knows it, `seen` (an evaluation of each, [`Self::evals`] of some state):
+    /// static optimisation, into `out`; the reserves: what the muscles cannot (N m).
+    pub fn excitations_seen(
+        &mut self,
+        moment_nm: [f64; 3],
+        seen: impl Iterator<Item = MuscleEval>,
+        out: &mut [f64],
+    ) -> [f64; 3] {
+        for (e, s) in self.evals.iter_mut().zip(seen) {
+            *e = s;
+        }
+        let (passive_moment, _) = self.load();
+        let reserve = self.optimise_loaded(moment_nm, passive_moment);
         out.copy_from_slice(&self.act);
         reserve
     }
 
     /// The muscles' moments about hip, knee and ankle (N m; flexion and dorsiflexion positive)
-    /// at the state of `j` with activations `a`, passive forces included.
-    pub fn moments(&mut self, j: &Joints, a: &[f64]) -> [f64; 3] {
-        let (mut m, _) = self.muscles_at(j);
+    /// of the muscles `evals` ([`Self::evaluate`]'s at some state, loaded as [`Self::evals`])
+    /// with activations `a`, passive forces included.
+    pub fn moments_of(&mut self, evals: &[MuscleEval], a: &[f64]) -> [f64; 3] {
+        self.evals.copy_from_slice(evals);
+        let (mut m, _) = self.load();
         for (col, a) in self.columns.iter().zip(a) {
             (0..3).for_each(|k| m[k] += col[k] * a);
         }
@@ -385,30 +383,37 @@ impl Analysis {
     }
 
     /// The sample of muscles at activations `a` under excitations `u` (a muscle wearer's), at
-    /// the state of the last [`Self::moments`] call, which `j` repeats with the moments the
-    /// muscles make (its angles are read for the record only), with the reserves `reserve`.
-    pub fn sample_after_moments(&self, j: &Joints, a: &[f64], u: &[f64], reserve: [f64; 3]) -> Sample {
-        self.values(j, a, u, reserve, self.outside)
+    /// the state of the last [`Self::moments_of`] call, which `j` repeats with the moments the
+    /// muscles make (its angles are read for the record only), with the reserves `reserve`:
+    /// into `out` ([`MuscleSetup::width`] values).
+    pub fn sample_after_moments(&self, j: &Joints, a: &[f64], u: &[f64], reserve: [f64; 3], out: &mut [f64]) {
+        self.values_into(j, a, u, reserve, self.outside, out);
     }
 
     /// The sample's values at the fibres now.
     fn values(&self, j: &Joints, act: &[f64], exc: &[f64], reserve: [f64; 3], outside: usize) -> Sample {
-        let mut values = Vec::with_capacity(self.setup.width());
+        let mut values = vec![0.0; self.setup.width()];
+        self.values_into(j, act, exc, reserve, outside, &mut values);
+        Sample { values }
+    }
+
+    /// [`Self::values`] into `out` ([`MuscleSetup::width`] values).
+    fn values_into(&self, j: &Joints, act: &[f64], exc: &[f64], reserve: [f64; 3], outside: usize, out: &mut [f64]) {
+        let (per_muscle, totals) = out.split_at_mut(act.len() * PER_MUSCLE.len());
         let (mut total_w, mut effort) = (0.0, 0.0);
-        for (i, (&a, &u)) in act.iter().zip(exc).enumerate() {
+        for (i, ((&a, &u), slot)) in act.iter().zip(exc).zip(per_muscle.chunks_exact_mut(PER_MUSCLE.len())).enumerate()
+        {
             let MuscleEval { fibre: f, k, pe, .. } = self.evals[i];
             let rate = self.rate_of(i, a, u);
             total_w += rate;
             effort += a * a;
             let active = a * k / f.cos_pennation;
-            values.extend_from_slice(&[a, f.length_norm, f.velocity_per_s, active, a * k + pe, rate]);
+            slot.copy_from_slice(&[a, f.length_norm, f.velocity_per_s, active, a * k + pe, rate]);
         }
-        values.extend_from_slice(&[total_w, effort]);
-        values.extend_from_slice(&reserve);
-        values.extend_from_slice(&j.moment_nm);
-        values.push(j.q_rad[0].to_degrees());
-        values.push(outside as f64);
-        Sample { values }
+        let [rh, rk, ra] = reserve;
+        let [mh, mk, ma] = j.moment_nm;
+        let t = [total_w, effort, rh, rk, ra, mh, mk, ma, j.q_rad[0].to_degrees(), outside as f64];
+        totals.copy_from_slice(&t);
     }
 
     /// Sequential convex quadratics of the muscles' metabolic rates from the activations now

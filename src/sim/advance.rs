@@ -99,7 +99,7 @@ impl Simulation {
     pub(super) fn muscle_sample(&mut self, t: f64) -> Option<Arc<[f64]>> {
         let _timed = crate::profile::scope(crate::profile::Stage::Wearer);
         if let Some(w) = &self.wearer {
-            return w.sample_at(t).map(|s| Arc::from(&s.values[..]));
+            return w.sample_at(t).cloned();
         }
         let a = self.muscles.as_mut()?;
         let b = self.plant.body_state()?;

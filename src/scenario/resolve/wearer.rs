@@ -29,6 +29,9 @@ impl Scenario {
         Ok(Arc::new(crate::human::MuscleWearerSetup {
             muscles: muscles.clone(),
             delay_s: w.neural_delay_s.per_joint(),
+            muscle_group: crate::human::muscle_wearer::muscle_groups(
+                muscles.set.muscles.iter().map(|m| &m.path.joints),
+            ),
             adapted: w.adapted,
             stiffness_nm_per_rad: [per_kg(w.stance_stiffness_nm_per_rad_kg), per_kg(w.swing_stiffness_nm_per_rad_kg)],
             damping_nm_s_per_rad: [per_kg(w.stance_damping_nm_s_per_rad_kg), per_kg(w.swing_damping_nm_s_per_rad_kg)],
