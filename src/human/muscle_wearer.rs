@@ -8,8 +8,10 @@
 //! sensed(t)  = the learned gait's angles and rates less the body's, the device's knee torque
 //! seen       = sensed(t - delay)                               (the delay line)
 //! asked      = M_ff(phase) + K(w) e_seen,now + D(w) e'_seen - [adapted] M_device,seen
-//! u          = static optimisation of `asked` among the muscles at the body's state now
-//!              (the squared activations, reserves where the muscles cannot: reported, not applied)
+//! target     = static optimisation of `asked` among the muscles, each at the body's state its
+//!              reflex loop's delay ago (hip, knee or ankle group; the squared activations,
+//!              reserves where the muscles cannot: reported, not applied)
+//! u          = the excitation that brings each activation to its target in the step, or 0 / 1
 //! M_muscles  = sum_i r_i (a_i F_max f_L f_V + F_passive) cos(alpha)  at the state now   (held over the step)
 //! a(t + dt)  = u + (a - u) exp(-g(u, a) dt),  g: De Groote's activation rate (15 / 60 ms)
 //! ```

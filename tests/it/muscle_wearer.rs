@@ -69,9 +69,10 @@ fn pushed(muscles: bool, step_nm: f64, at_s: f64) -> exoleg::record::MemoryRecor
 /// of a 20 N m push), the knee hardly moves. The muscle wearer's activations do not change
 /// before the hip's neural delay (5 ms; measured: the hamstrings and gastrocnemius share the
 /// hip's answer to the body's motion from 7 ms), the knee's own vasti not before the knee's
-/// 10 ms (measured 11 ms: the angle moves the millisecond after the push), its moment
-/// changes before then only through the muscles' own force-velocity (measured 0.53 N m, 2 % of
-/// its answer 150 ms on, 23.6 N m; limit 5 %), and the knee sinks (measured 8.6 deg at 150 ms
+/// 10 ms (measured 12 ms: the angle moves the millisecond after the push, the activation the
+/// step after the target; limit the delay plus 3 ms), its moment changes before then only
+/// through the muscles' own force-velocity (measured 0.41 N m, 2 % of its answer 150 ms on,
+/// 23.3 N m; limit 5 %), and the knee sinks (measured 8.5 deg at 150 ms
 /// against the impedance wearer's 1.1 deg for a push twice as large).
 #[test]
 fn a_push_is_answered_a_neural_delay_late() {
@@ -91,7 +92,7 @@ fn a_push_is_answered_a_neural_delay_late() {
     // knee's own muscles (vasti, biceps femoris short head) wait for the knee's 10 ms.
     assert!(firsts.iter().all(|&f| f >= 5), "activations changed before any delay: {firsts:?}");
     assert!(firsts[0] >= 10 && firsts[2] >= 10, "knee muscles before the knee's delay: {firsts:?}");
-    assert!(firsts[0] <= 12, "no answer at the delay: {firsts:?}");
+    assert!(firsts[0] <= 13, "no answer at the delay: {firsts:?}");
     let answer = dm[k0 + 150];
     assert!(answer < -15.0, "the muscles' answer {answer} N m (extensor -)");
     let intrinsic = dm[k0..k0 + 10].iter().fold(0.0f64, |a, b| a.max(b.abs()));
