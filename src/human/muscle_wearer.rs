@@ -255,26 +255,15 @@ impl MuscleWearer {
         }
     }
 
-    /// What the wearer sensed `delay_s` before `t_s` (the oldest it has at the start).
-    fn seen(&self, t_s: f64, delay_s: f64) -> &Sensed {
-        &self.line[seen_index(&self.line, t_s, delay_s)]
-    }
-
-    /// The moments the nervous system asks for at `t_s` (N m).
-    fn asked(&mut self, t_s: f64, x: &WearerInputs) -> [f64; 3] {
-        let [ff, q, qd] = self.setup.feedforward.at(x.pct);
-        self.sense(Sensed {
-            t_s,
-            pct: x.pct,
-            error_rad: [0, 1, 2].map(|j| q[j] - x.body_rad[j]),
-            error_rate_rad_s: [0, 1, 2].map(|j| qd[j] - x.body_rate_rad_s[j]),
-            device_torque_nm: x.device_torque_nm,
-        });
+    /// The moments the nervous system asks for at `t_s` (N m), with `seen` the delay line's
+    /// entries each joint's delay ago ([`seen_index`]) and `ff` the learned gait's moments now
+    /// (N m).
+    fn asked(&mut self, t_s: f64, x: &WearerInputs, seen: [usize; 3], ff: [f64; 3]) -> [f64; 3] {
         let s = &self.setup;
         let w = x.stance_weight.clamp(0.0, 1.0);
         let blend = |g: &[[f64; 3]; 2], j: usize| w * g[0][j] + (1.0 - w) * g[1][j];
         let fb = [0, 1, 2].map(|j| {
-            let seen = self.seen(t_s, s.delay_s[j]);
+            let seen = &self.line[seen[j]];
             // The deviation seen a delay ago, carried forward over the delay along its rate.
             let delay = (t_s - seen.t_s).max(0.0);
             let e = seen.error_rad[j] + seen.error_rate_rad_s[j] * delay;
@@ -285,7 +274,7 @@ impl MuscleWearer {
             // The knee moment the gait took, the device's part of it as it was in the
             // learning run less what the wearer now expects of the device.
             let learned = interpolate_bins(s.feedforward.device_bins(), x.pct);
-            asked[1] += learned - self.expect_device(t_s, x.pct);
+            asked[1] += learned - self.expect_device(self.line[seen[1]], x.pct);
         }
         asked
     }
@@ -294,8 +283,8 @@ impl MuscleWearer {
     /// an exponential average over [`DEVICE_ADAPTATION_STRIDES`] of the strides before this
     /// one of what it felt there (a knee's delay late). A wearer used to the device knows its
     /// pattern; a change, a fault, is felt as a push until it has walked with it a while.
-    fn expect_device(&mut self, t_s: f64, pct: f64) -> f64 {
-        let felt = *self.seen(t_s, self.setup.delay_s[1]);
+    /// `felt`: what it sensed a knee's delay ago.
+    fn expect_device(&mut self, felt: Sensed, pct: f64) -> f64 {
         let n = self.expected_device_nm.len();
         let b = bin_of(n, felt.pct);
         let d = &mut self.device;
@@ -319,7 +308,16 @@ impl MuscleWearer {
     /// One step of `dt_s` from `t_s`: returns the muscles' moments about hip, knee and ankle
     /// over it (N m, flexion and dorsiflexion positive).
     pub fn step(&mut self, t_s: f64, dt_s: f64, x: &WearerInputs) -> [f64; 3] {
-        let asked = self.asked(t_s, x);
+        let [ff, q, qd] = self.setup.feedforward.at(x.pct);
+        self.sense(Sensed {
+            t_s,
+            pct: x.pct,
+            error_rad: [0, 1, 2].map(|j| q[j] - x.body_rad[j]),
+            error_rate_rad_s: [0, 1, 2].map(|j| qd[j] - x.body_rate_rad_s[j]),
+            device_torque_nm: x.device_torque_nm,
+        });
+        let seen = self.setup.delay_s.map(|d| seen_index(&self.line, t_s, d));
+        let asked = self.asked(t_s, x, seen, ff);
         // The muscles now, kept beside the delay line's newest entry: what the nervous system
         // knows of each a delay later.
         let mut now = std::mem::take(&mut self.spare);
@@ -328,7 +326,6 @@ impl MuscleWearer {
         self.body.push_back(now);
         // The activations that would make the asked moments (static optimisation) with each
         // muscle as the nervous system knows it: its state its reflex loop's delay ago.
-        let seen = self.setup.delay_s.map(|d| seen_index(&self.line, t_s, d));
         let (body, group) = (&self.body, &self.setup.muscle_group);
         let known = group.iter().enumerate().map(|(i, &g)| body[seen[g]][i]);
         self.reserve_nm = self.analysis.excitations_seen(asked, known, &mut self.target);

@@ -387,8 +387,6 @@ impl WalkingData {
     pub fn at(&self, t_s: f64) -> WalkingSample {
         let pct = self.pct_at(t_s);
         let m = self.subject_mass_kg;
-        let (g_this, g_other) = self.grf_pair_n(pct);
-        let (pelvis, rate_per_pct, accel_per_pct2) = self.pelvis.eval(pct);
         WalkingSample {
             hip: self.thigh_at(t_s),
             knee: self.gait.knee_at(t_s),
@@ -396,6 +394,24 @@ impl WalkingData {
             hip_moment_nm: self.hip_moment.at(pct) * m,
             knee_moment_nm: self.knee_moment.at(pct) * m,
             ankle_moment_nm: self.ankle_moment.at(pct) * m,
+            ..self.support_at(t_s)
+        }
+    }
+
+    /// [`Self::at`] without the joints: the ground reactions, the pelvis and the stance weight
+    /// (the angles and moments zero), for a body whose joints something else drives (the
+    /// muscle wearer).
+    pub fn support_at(&self, t_s: f64) -> WalkingSample {
+        let pct = self.pct_at(t_s);
+        let (g_this, g_other) = self.grf_pair_n(pct);
+        let (pelvis, rate_per_pct, accel_per_pct2) = self.pelvis.eval(pct);
+        WalkingSample {
+            hip: RefSample::default(),
+            knee: RefSample::default(),
+            ankle: RefSample::default(),
+            hip_moment_nm: 0.0,
+            knee_moment_nm: 0.0,
+            ankle_moment_nm: 0.0,
             grf_this_n: g_this,
             grf_other_n: g_other,
             other_share: Self::share_of(g_this, g_other),

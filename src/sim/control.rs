@@ -246,7 +246,14 @@ impl Simulation {
         let _timed = crate::profile::scope(crate::profile::Stage::Wearer);
         let b = self.sc.leg()?.body.as_ref()?;
         let state = self.plant.body_state()?;
-        let mut sample = b.targets.at(t);
+        // The muscle wearer drives the joints: the data's angles and moments are not needed
+        // (an ideal device reads the data's knee moment).
+        let mut sample = match &b.targets {
+            crate::human::BodyTargets::Walking(w) if self.wearer.is_some() && self.sc.ideal.is_none() => {
+                w.support_at(t)
+            }
+            targets => targets.at(t),
+        };
         if let crate::human::BodyTargets::Walking(w) = &b.targets {
             if let Some(e) = &self.held.events {
                 sample.other_share = e.other_share(t, w);
