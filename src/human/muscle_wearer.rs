@@ -492,6 +492,11 @@ struct Newton {
 
 impl Newton {
     fn new(a: f64, target: f64, u: f64) -> Self {
+        if a == target {
+            // The root itself: an activation kept where it is (a muscle resting at its least
+            // activation most often) needs the excitation equal to it.
+            return Self { a, target, u: a, reached: a, slopes: (0.0, 0.0), progress: Progress::Settled };
+        }
         Self { a, target, u, reached: f64::NAN, slopes: gain_slopes(a), progress: Progress::Running }
     }
 
