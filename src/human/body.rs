@@ -226,7 +226,9 @@ pub struct WearerParams {
     /// transmission delays of Geyer and Herr's (2010) reflex walking model; the stretch
     /// reflexes measured in walking people start later (soleus 42 ms, Sinkjaer et al. 1996),
     /// and with those this wearer does not hold the gait (README, "A wearer as strong and as
-    /// slow as a person"). Each 0..=0.3.
+    /// slow as a person"). Static optimisation knows each muscle its group's delay late: a
+    /// muscle spanning the hip the hip's (the hamstrings and rectus femoris too), else one
+    /// spanning the ankle the ankle's (the gastrocnemius), else the knee's. Each 0..=0.3.
     #[serde(skip_serializing_if = "is_default")]
     pub neural_delay_s: NeuralDelay,
     /// The muscle wearer's feedback stiffness in stance about the gait it learned, hip, knee
