@@ -409,7 +409,7 @@ fn kept(a: f64, u: f64, dt_s: f64) -> f64 {
 }
 
 /// Muscles whose excitations are computed side by side: each phase of a Newton step (the
-/// gains' tanh, then their exponentials) runs for all of them before the next, so the
+/// gains' switch, then their exponentials) runs for all of them before the next, so the
 /// processor overlaps their independent work instead of waiting on one muscle's chain of
 /// library calls.
 const LANES: usize = 8;
