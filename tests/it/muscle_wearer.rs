@@ -223,8 +223,9 @@ fn figures(r: &exoleg::study::gait_check::Report) -> Vec<(String, [f64; 4])> {
 }
 
 /// Both leg engines walk v3 with the muscle wearer alike at the same step (0.25 ms): measured
-/// largest differences over the 21 trials stance 0.0005, GRF r 0.0006, GRF peak ratio 0.0022,
-/// knee-moment r 0.0024 (limits 2-3x). At their usual steps (reduced 1 ms, Rapier 0.25 ms) they
+/// largest differences over the 21 trials stance 0.0005, GRF r 0.0009, GRF peak ratio 0.0041,
+/// knee-moment r 0.0026 (limits 1.5-3x; each muscle at its own delay since this round, 0.0006 /
+/// 0.0022 / 0.0024 before). At their usual steps (reduced 1 ms, Rapier 0.25 ms) they
 /// differ more than the impedance wearer's (peak ratio 0.022, knee-moment r 0.019): the step
 /// itself, not the engine, as the reduced engine at 0.25 ms shows; the delayed feedback loop
 /// is more sensitive to the step's half-millisecond of hold than an instant impedance.
