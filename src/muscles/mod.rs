@@ -20,6 +20,7 @@
 //! default pose), maximum isometric forces unchanged (the tool leaves them), muscle masses
 //! from the forces and the scaled fibre lengths.
 
+pub mod activation;
 pub mod analysis;
 pub mod curves;
 mod file;
