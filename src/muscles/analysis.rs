@@ -272,7 +272,7 @@ impl Analysis {
         self.load()
     }
 
-    /// The moment columns from [`Self::evals`]; the passive moments (N m) and how many muscles
+    /// The moment columns from `self.evals`; the passive moments (N m) and how many muscles
     /// are outside their tables.
     fn load(&mut self) -> ([f64; 3], usize) {
         let mut passive_moment = [0.0; 3];
@@ -288,14 +288,9 @@ impl Analysis {
         (passive_moment, outside)
     }
 
-    /// Every muscle at the state of `j` ([`Self::evals`] after).
+    /// Every muscle at the state of `j`.
     pub fn evaluate(&mut self, j: &Joints) -> &[MuscleEval] {
         self.muscles_at(j);
-        &self.evals
-    }
-
-    /// Each muscle at the last state evaluated or loaded.
-    pub fn evals(&self) -> &[MuscleEval] {
         &self.evals
     }
 
@@ -353,7 +348,7 @@ impl Analysis {
     }
 
     /// The excitations a nervous system sends for the moments `moment_nm` (N m) with each
-    /// muscle as it knows it, `seen` (an evaluation of each, [`Self::evals`] of some state):
+    /// muscle as it knows it, `seen` (an evaluation of each, [`Self::evaluate`]'s at some state):
     /// static optimisation, into `out`; the reserves: what the muscles cannot (N m).
     pub fn excitations_seen(
         &mut self,
@@ -371,7 +366,7 @@ impl Analysis {
     }
 
     /// The muscles' moments about hip, knee and ankle (N m; flexion and dorsiflexion positive)
-    /// of the muscles `evals` ([`Self::evaluate`]'s at some state, loaded as [`Self::evals`])
+    /// of the muscles `evals` ([`Self::evaluate`]'s at some state)
     /// with activations `a`, passive forces included.
     pub fn moments_of(&mut self, evals: &[MuscleEval], a: &[f64]) -> [f64; 3] {
         self.evals.copy_from_slice(evals);
